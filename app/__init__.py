@@ -1,0 +1,1 @@
+"""slscan application layer: patterns, decoding, triangulation, capture, CLI (no device code)."""

@@ -1,0 +1,67 @@
+"""The `slscan` command line: subcommands are discovered from `app/commands/`."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+from collections.abc import Sequence
+from typing import NoReturn
+
+from app import commands
+from app.errors import SlscanError
+
+DESCRIPTION = """\
+slscan: a live structured-light 3D scanner (colour-stripe patterns after Je, Lee & Park, 2004).
+
+A projector throws colour-stripe patterns, a synchronised camera films them, and every frame set
+becomes a depth map and a point cloud. With no hardware configured, slscan runs on a virtual rig
+(config/sim.yaml): a simulated projector, camera and trigger over a rendered scene.
+"""
+
+EPILOG = "Run `slscan COMMAND --help` for the options of one command."
+
+
+class OneLineErrorParser(argparse.ArgumentParser):
+    """Usage mistakes print one line (with a pointer to --help) and exit with status 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = OneLineErrorParser(
+        prog="slscan",
+        description=DESCRIPTION,
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineErrorParser)
+    for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
+        module = importlib.import_module(f"{commands.__name__}.{info.name}")
+        register = getattr(module, "register", None)
+        if register is not None:
+            register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    func = getattr(args, "func", None)
+    if func is None:
+        parser.print_help()
+        return 2
+    try:
+        return int(func(args) or 0)
+    except SlscanError as exc:
+        print(f"slscan {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"slscan {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

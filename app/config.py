@@ -1,0 +1,60 @@
+"""Settings: a rig (camera, projector, trigger drivers) and a scheme, from YAML.
+
+`config/sim.yaml` (the virtual rig) is the default. Errors name the file and the key.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from app.errors import InputError
+
+CONFIG_DIR = Path(__file__).resolve().parent.parent / "config"
+DEFAULT_CONFIG = CONFIG_DIR / "sim.yaml"
+
+
+@dataclass
+class Config:
+    path: Path
+    data: dict = field(repr=False)
+
+    def section(self, key: str, required: bool = True) -> dict:
+        value = self.data.get(key)
+        if value is None:
+            if required:
+                raise InputError(f"{self.path}: missing key '{key}'")
+            return {}
+        if not isinstance(value, dict):
+            raise InputError(f"{self.path}: key '{key}' must be a mapping")
+        return value
+
+    def get(self, dotted: str, default: object = ..., types: type | tuple[type, ...] | None = None) -> object:
+        """A value by dotted key ('scheme.k'); missing without default -> error naming the key."""
+        node: object = self.data
+        for part in dotted.split("."):
+            if not isinstance(node, dict) or part not in node:
+                if default is ...:
+                    raise InputError(f"{self.path}: missing key '{dotted}'")
+                return default
+            node = node[part]
+        if types is not None and not isinstance(node, types):
+            names = types.__name__ if isinstance(types, type) else " or ".join(t.__name__ for t in types)
+            raise InputError(f"{self.path}: key '{dotted}' must be {names}, found {node!r}")
+        return node
+
+
+def load_config(path: str | os.PathLike | None = None) -> Config:
+    path = Path(path) if path is not None else DEFAULT_CONFIG
+    if not path.is_file():
+        raise InputError(f"{path}: config file not found")
+    try:
+        data = yaml.safe_load(path.read_text())
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: not valid YAML ({str(exc).splitlines()[0]})") from None
+    if not isinstance(data, dict):
+        raise InputError(f"{path}: expected a mapping at the top level")
+    return Config(path, data)

@@ -1,0 +1,1 @@
+"""Device drivers: the only code that touches hardware or OS devices."""
