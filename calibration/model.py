@@ -84,7 +84,7 @@ class Calibration:
             raise InputError(f"{path}: calibration file not found")
         try:
             fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
-        except cv2.error:
+        except (cv2.error, SystemError):  # OpenCV's parser raises either on malformed files
             raise InputError(f"{path}: not an OpenCV FileStorage YAML calibration") from None
         if not fs.isOpened():
             raise InputError(f"{path}: not an OpenCV FileStorage YAML calibration")
@@ -94,7 +94,10 @@ class Calibration:
                 node = fs.getNode(key)
                 if node.empty():
                     raise InputError(f"{path}: missing field '{key}'")
-                m = node.mat()
+                try:
+                    m = node.mat()
+                except (cv2.error, SystemError):
+                    m = None
                 if m is None:
                     raise InputError(f"{path}: field '{key}' is not a matrix")
                 m = np.asarray(m, np.float64)
