@@ -62,7 +62,7 @@ def test_missing_last_frame_file_is_tolerated_but_missing_middle_is_an_error(tmp
     d = read_dump(tmp_path / "d")
     assert len(d.frames) == 4 and d.dropped_tail == 1
     (tmp_path / "d" / "frames" / "000001.png").unlink()
-    with pytest.raises(InputError, match="000001.png"):
+    with pytest.raises(InputError, match=r"000001\.png"):
         read_dump(tmp_path / "d")
 
 

@@ -79,7 +79,7 @@ def test_missing_field_named(tmp_path):
 @pytest.mark.parametrize("content", ["", "not: [yaml", "%YAML:1.0\n---\nfoo: 1\n", "\x00\x01binary"])
 def test_garbage_files(tmp_path, content):
     (tmp_path / "c.yaml").write_text(content)
-    with pytest.raises(InputError, match="c.yaml"):
+    with pytest.raises(InputError, match=r"c\.yaml"):
         Calibration.load(tmp_path / "c.yaml")
 
 
