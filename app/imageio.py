@@ -62,3 +62,12 @@ def read_float_tiff(path: str | os.PathLike) -> np.ndarray:
     if img.dtype != np.float32 or img.ndim != 2:
         raise InputError(f"{path}: expected a single-channel float32 TIFF, found {img.dtype} {img.shape}")
     return img
+
+
+def encode_png(image: np.ndarray, params: tuple[int, ...] = ()) -> bytes:
+    """Encode an RGB (H, W, 3) or grey (H, W) uint8/uint16 image as PNG bytes (OpenCV imwrite params)."""
+    arr = image[..., ::-1] if image.ndim == 3 else image
+    ok, buf = cv2.imencode(".png", np.ascontiguousarray(arr), list(params))
+    if not ok:
+        raise InputError(f"cannot encode a {image.dtype} {image.shape} image as PNG")
+    return buf.tobytes()
