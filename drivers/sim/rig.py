@@ -1,0 +1,491 @@
+"""The virtual rig: a ray-cast scene seen by a simulated camera under a simulated projector.
+
+Per scene (and per board pose / motion step) everything that does not depend on the pattern is
+precomputed: camera ray hits, normals, reflectance (supersampled on calibration boards),
+projector coordinates, projector shadows, shading and the ambient image. A frame is then a few
+vectorised steps (one `cv2.remap` lookup of the projected light, a multiply-add, crosstalk,
+PSF blur, noise, response LUT), fast enough for a 60 Hz live session at 640x480.
+
+Image formation, per camera pixel with surface albedo rho (RGB), projector light P (RGB):
+    P        = black_level + brightness * (pattern / 255) ** projector_gamma   (defocus-blurred)
+    linear   = exposure * (rho * (g * P + ambient * ambient_color) + specular_lobe * P)
+    linear  <- crosstalk @ linear, PSF blur, + shot and read noise
+    output   = (2**bits - 1) * clip(linear, 0, 1) ** (1 / camera_gamma)
+g = cos(incidence) * (d_ref / d)^2 where lit (0 in projector shadow or outside its image).
+`ideal=True` turns every effect off (g = 1 where lit), so a white plane returns the pattern exactly.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from app.errors import InputError
+from calibration.model import Calibration
+from drivers.sim.optics import Geometry, camera_rays, project
+from drivers.sim.scene import Board, Scene, SceneError, load_scene
+from drivers.sim.shapes import Shape
+
+# Camera R, G, B (rows) produced by projector R, G, B (columns): ~10 % leak, a Bayer-like camera.
+DEFAULT_CROSSTALK = np.array([[1.00, 0.10, 0.02], [0.08, 1.00, 0.11], [0.02, 0.09, 1.00]])
+
+
+@dataclass
+class RigOptions:
+    """The optical and sensor effects (keyword overrides of `VirtualRig.from_preset`)."""
+
+    bit_depth: int = 8  # 8 or 16
+    seed: int = 0
+    # projector
+    projector_gamma: float = 2.2  # light = (value / 255) ** gamma
+    black_level: float = 0.02  # light leak at value 0, fraction of white
+    brightness: float = 1.0
+    defocus_sigma_px: float = 0.35  # Gaussian defocus, projector pixels (0 = sharp)
+    # camera
+    exposure: float = 0.75  # linear signal of a white surface facing the projector at d_ref, full white
+    camera_gamma: float = 1.8  # output = linear ** (1 / camera_gamma)
+    psf_sigma_px: float = 0.6  # lens blur, camera pixels at 640 px width (scaled with the width)
+    crosstalk: float | list | bool = 0.10  # largest off-diagonal leak, or a 3x3 matrix, or False
+    noise: bool = True
+    full_well: float = 6000.0  # electrons at full scale (shot noise)
+    read_noise: float = 0.004  # fraction of full scale (~1 DN at 8 bit)
+    # scene lighting
+    ambient: float = 0.08  # ambient illuminance relative to projector white at d_ref
+    ambient_color: tuple[float, float, float] = (1.0, 0.92, 0.78)  # warm room light
+    shading: bool = True  # cos(incidence) and 1/d^2 falloff of the projector light
+    specular: bool = True
+    supersample: int = 4  # per axis, reflectance of anti-aliased (board) surfaces
+    motion_mm_per_frame: tuple[float, float, float] = (0.0, 0.0, 0.0)  # objects marked `moves`
+
+    def crosstalk_matrix(self) -> np.ndarray:
+        c = self.crosstalk
+        if c is False or c is None:
+            return np.eye(3)
+        if c is True:
+            return DEFAULT_CROSSTALK.copy()
+        if isinstance(c, int | float):
+            off = DEFAULT_CROSSTALK - np.eye(3)
+            return np.eye(3) + off * (float(c) / off.max())
+        return np.asarray(c, np.float64).reshape(3, 3)
+
+
+IDEAL = {
+    "projector_gamma": 1.0,
+    "black_level": 0.0,
+    "brightness": 1.0,
+    "defocus_sigma_px": 0.0,
+    "exposure": 1.0,
+    "camera_gamma": 1.0,
+    "psf_sigma_px": 0.0,
+    "crosstalk": False,
+    "noise": False,
+    "ambient": 0.0,
+    "shading": False,
+    "specular": False,
+}
+
+GEOMETRY_KEYS = {f.name for f in fields(Geometry)}
+OPTION_KEYS = {f.name for f in fields(RigOptions)}
+
+
+@dataclass
+class GroundTruth:
+    """What the camera sees at each pixel centre, for the last rendered frame."""
+
+    depth: np.ndarray  # (H, W) float32 Z in mm, 0 = no surface
+    column: np.ndarray  # (H, W) float32 projector column (pixel centres at integers), NaN where not lit
+    row: np.ndarray  # (H, W) float32 projector row, NaN where not lit
+    lit: np.ndarray  # (H, W) bool: a surface is visible and the projector lights it
+    points: np.ndarray = field(repr=False)  # (H, W, 3) float32 camera-frame points, 0 = none
+
+    @property
+    def visible(self) -> np.ndarray:
+        return self.depth > 0
+
+
+@dataclass(frozen=True)
+class PreparedPattern:
+    """A projector image converted once to linear light (gamma, black level, defocus)."""
+
+    linear: np.ndarray  # (Hp, Wp, 3) float32
+
+
+class VirtualRig:
+    """One scene, one camera, one projector; `render(pattern)` returns the camera image."""
+
+    def __init__(self, scene: Scene, geometry: Geometry, options: RigOptions) -> None:
+        self.scene = scene
+        self.geometry = geometry
+        self.options = options
+        where = str(scene.path or scene.name)
+        geometry.check(where)
+        self._check_options(where)
+        self._K = geometry.camera_matrix()
+        self._dist = np.asarray(geometry.camera_distortion, np.float64)
+        self._Kp = geometry.projector_matrix()
+        self._distp = np.asarray(geometry.projector_distortion, np.float64)
+        self._R, self._T = geometry.extrinsics()
+        self._Cp = -self._R.T @ self._T
+        self._d_ref = float(np.linalg.norm(np.asarray(geometry.projector_target_mm) - self._Cp))
+        self._crosstalk = options.crosstalk_matrix()
+        w, h = geometry.camera_size
+        self._rays = camera_rays(self._K, self._dist, (w, h)).reshape(-1, 3)
+        self._rng = np.random.default_rng(options.seed)
+        n = w * h * 3
+        self._noise_bank = self._rng.standard_normal(2 * n + 4096, dtype=np.float32) if options.noise else None
+        self._lut = self._make_lut()
+        self._base_shapes = list(scene.shapes)
+        self.frame_index = 0  # renders so far (drives motion)
+        self._motion_step = 0
+        self._black: PreparedPattern | None = None
+        self._precompute(self._base_shapes)
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_preset(cls, name: str, ideal: bool = False, **overrides: object) -> VirtualRig:
+        """A rig over a named preset (config/scenes/NAME.yaml) or a scene file path.
+
+        Overrides are Geometry fields (camera_size, projector_size, ...) or RigOptions fields
+        (noise, ambient, seed, bit_depth, ...). With ideal=True every effect is off unless
+        overridden, and the scene file's `effects` are ignored.
+        """
+        scene = load_scene(name)
+        return cls.from_scene(scene, ideal=ideal, **overrides)
+
+    @classmethod
+    def from_scene(cls, scene: Scene, ideal: bool = False, **overrides: object) -> VirtualRig:
+        where = str(scene.path or scene.name)
+        opts: dict = {}
+        if ideal:
+            opts.update(IDEAL)
+        else:
+            for key, value in scene.effects.items():
+                if key not in OPTION_KEYS:
+                    known = ", ".join(sorted(OPTION_KEYS))
+                    raise SceneError(f"{where}: field 'effects.{key}' is unknown (known: {known})")
+                opts[key] = value
+        geo: dict = dict(scene.geometry)
+        for key, value in overrides.items():
+            if key in GEOMETRY_KEYS:
+                geo[key] = value
+            elif key in OPTION_KEYS:
+                opts[key] = value
+            else:
+                known = ", ".join(sorted(GEOMETRY_KEYS | OPTION_KEYS))
+                raise InputError(f"virtual rig: unknown option {key!r} (known: {known})")
+        for key in ("camera_size", "projector_size"):
+            if key in geo:
+                geo[key] = _int_pair(geo[key], key, where)
+        for key, value in list(geo.items()):
+            if isinstance(value, list):
+                geo[key] = tuple(value)
+        for key in ("ambient_color", "motion_mm_per_frame"):
+            if key in opts and isinstance(opts[key], list):
+                opts[key] = tuple(opts[key])
+        try:
+            geometry = Geometry(**geo)
+            options = RigOptions(**opts)
+        except TypeError as exc:
+            raise InputError(f"{where}: bad rig option ({exc})") from None
+        return cls(scene, geometry, options)
+
+    def _check_options(self, where: str) -> None:
+        o = self.options
+
+        def bad(key: str, msg: str) -> InputError:
+            return InputError(f"{where}: option '{key}' {msg}, found {getattr(o, key)!r}")
+
+        if o.bit_depth not in (8, 16):
+            raise bad("bit_depth", "must be 8 or 16")
+        for key in ("projector_gamma", "camera_gamma", "exposure", "full_well"):
+            if not (isinstance(getattr(o, key), int | float) and getattr(o, key) > 0):
+                raise bad(key, "must be a number > 0")
+        for key in ("black_level", "brightness", "defocus_sigma_px", "psf_sigma_px", "read_noise", "ambient"):
+            if not (isinstance(getattr(o, key), int | float) and getattr(o, key) >= 0):
+                raise bad(key, "must be a number >= 0")
+        if not (isinstance(o.supersample, int) and 1 <= o.supersample <= 16):
+            raise bad("supersample", "must be a whole number 1..16")
+        if len(o.ambient_color) != 3 or min(o.ambient_color) < 0:
+            raise bad("ambient_color", "must be [r, g, b] >= 0")
+        if len(o.motion_mm_per_frame) != 3:
+            raise bad("motion_mm_per_frame", "must be [x, y, z] mm")
+        try:
+            M = o.crosstalk_matrix()
+        except (ValueError, TypeError):
+            raise bad("crosstalk", "must be a number, true/false or a 3x3 matrix") from None
+        if not np.all(np.isfinite(M)) or np.any(M < 0) or abs(np.linalg.det(M)) < 1e-6:
+            raise bad("crosstalk", "must give a non-negative, invertible 3x3 matrix")
+
+    # ------------------------------------------------------------------ public properties
+    @property
+    def camera_size(self) -> tuple[int, int]:
+        return self.geometry.camera_size
+
+    @property
+    def projector_size(self) -> tuple[int, int]:
+        return self.geometry.projector_size
+
+    @property
+    def calibration(self) -> Calibration:
+        """The true calibration, with the true colour mixing (columns scaled to a unit diagonal)."""
+        M = self._crosstalk / np.diag(self._crosstalk)[None, :]
+        return self.geometry.calibration(color_mixing=M)
+
+    @property
+    def depth_range_mm(self) -> tuple[float, float]:
+        return self.scene.depth_range_mm
+
+    @property
+    def ground_truth(self) -> GroundTruth:
+        return self._gt
+
+    @property
+    def board(self) -> Board | None:
+        return self.scene.board
+
+    @property
+    def max_value(self) -> int:
+        return (1 << self.options.bit_depth) - 1
+
+    def set_board_pose(self, rvec: np.ndarray, tvec: np.ndarray) -> None:
+        """Pose the scene's calibration board (board frame -> camera, OpenCV rvec/tvec, mm)."""
+        board = self.scene.board
+        if board is None:
+            raise InputError(f"scene {self.scene.name!r} has no calibration board (try 'checkerboard' or 'charuco')")
+        rvec = np.asarray(rvec, np.float64).reshape(3)
+        tvec = np.asarray(tvec, np.float64).reshape(3)
+        if not (np.all(np.isfinite(rvec)) and np.all(np.isfinite(tvec))) or tvec[2] <= 0:
+            raise InputError(f"board pose rvec={rvec.tolist()} tvec={tvec.tolist()} is not in front of the camera")
+        R, _ = cv2.Rodrigues(rvec)
+        shape = dataclasses.replace(self._base_shapes[board.shape_index], R=R, c=tvec)
+        self._base_shapes[board.shape_index] = shape
+        self.scene.shapes[board.shape_index] = shape
+        board.rvec, board.tvec = rvec, tvec
+        self._precompute(self._current_shapes())
+
+    def board_corners_image(self) -> np.ndarray:
+        """True camera pixel coordinates (N, 2) of the board's inner corners at its current pose."""
+        board = self.scene.board
+        if board is None:
+            raise InputError(f"scene {self.scene.name!r} has no calibration board")
+        R, _ = cv2.Rodrigues(board.rvec)
+        X = board.object_points() @ R.T + board.tvec
+        return project(X, self._K, self._dist, np.eye(3), np.zeros(3))
+
+    # ------------------------------------------------------------------ precomputation
+    def _current_shapes(self) -> list[Shape]:
+        v = np.asarray(self.options.motion_mm_per_frame, np.float64)
+        if not np.any(v) or self._motion_step == 0:
+            return self._base_shapes
+        return [s.translated(v * self._motion_step) if s.moves else s for s in self._base_shapes]
+
+    def _cast(self, shapes: list[Shape], o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        t_best = np.full(len(d), np.inf)
+        sid = np.full(len(d), -1, np.int32)
+        face = np.zeros(len(d), np.int8)
+        for i, s in enumerate(shapes):
+            t, f = s.intersect(o, d)
+            closer = t < t_best
+            t_best = np.where(closer, t, t_best)
+            sid = np.where(closer, i, sid)
+            face = np.where(closer, f, face)
+        return t_best, sid, face
+
+    def _precompute(self, shapes: list[Shape]) -> None:
+        o = self.options
+        w, h = self.geometry.camera_size
+        wp, hp = self.geometry.projector_size
+        npx = w * h
+        d = self._rays
+        t, sid, face = self._cast(shapes, np.zeros(3), d)
+        hit = np.isfinite(t)
+        where = str(self.scene.path or self.scene.name)
+        if not hit.any():
+            raise InputError(f"{where}: impossible set-up: the camera sees no surface of the scene")
+        idx = np.nonzero(hit)[0]
+        X = d[idx] * t[idx, None]
+        n = np.zeros((len(idx), 3))
+        rho = np.zeros((len(idx), 3))
+        shin = np.ones(len(idx))
+        ks = np.zeros(len(idx))
+        for i, s in enumerate(shapes):
+            m = sid[idx] == i
+            if not m.any():
+                continue
+            n[m] = s.normal(X[m], face[idx][m])
+            rho[m] = self._albedo(s, idx[m], X[m], n[m], face[idx][m])
+            ks[m] = s.material.specular
+            shin[m] = s.material.shininess
+        # normals toward the camera (planes are two-sided)
+        flip = np.einsum("ij,ij->i", n, d[idx]) > 0
+        n[flip] *= -1
+        # projector: direction, distance, incidence, shadow, coordinates
+        L = self._Cp - X
+        dist = np.linalg.norm(L, axis=1)
+        lvec = L / dist[:, None]
+        cos_i = np.einsum("ij,ij->i", n, lvec)
+        t_sh, _, _ = self._cast(shapes, self._Cp, -lvec)
+        unshadowed = t_sh >= dist - (0.01 + 1e-5 * dist)
+        Xp = X @ self._R.T + self._T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            xn = Xp[:, :2] / Xp[:, 2:3]
+        lim = np.abs(np.linalg.solve(self._Kp, [[-0.5, wp - 0.5], [-0.5, hp - 0.5], [1, 1]])[:2]).max() * 1.5
+        in_front = (Xp[:, 2] > 1.0) & np.all(np.abs(xn) < lim, axis=1)
+        uvp = np.full((len(idx), 2), np.nan)
+        if in_front.any():
+            uvp[in_front] = project(X[in_front], self._Kp, self._distp, self._R, self._T)
+        with np.errstate(invalid="ignore"):
+            in_image = (uvp[:, 0] >= -0.5) & (uvp[:, 0] < wp - 0.5) & (uvp[:, 1] >= -0.5) & (uvp[:, 1] < hp - 0.5)
+        lit = in_front & in_image & unshadowed & (cos_i > 1e-6)
+        # shading and specular lobe (Blinn-Phong, halfway between projector and camera directions)
+        falloff = (self._d_ref / dist) ** 2
+        g = np.clip(cos_i, 0, None) * falloff if o.shading else np.ones(len(idx))
+        coef = rho * g[:, None]
+        if o.specular and np.any(ks > 0):
+            hv = lvec - d[idx]
+            hv /= np.linalg.norm(hv, axis=1, keepdims=True)
+            lobe = ks * np.clip(np.einsum("ij,ij->i", n, hv), 0, None) ** shin * falloff
+            coef += lobe[:, None]
+        coef[~lit] = 0
+        amb = rho * (o.ambient * np.asarray(o.ambient_color))[None, :]
+        # per-pixel buffers for the frame path
+        coef_img = np.zeros((npx, 3), np.float32)
+        coef_img[idx] = coef * o.exposure
+        amb_img = np.zeros((npx, 3), np.float32)
+        amb_img[idx] = amb * o.exposure
+        maps = np.full((npx, 2), -1, np.int16)
+        lit_idx = idx[lit]
+        maps[lit_idx] = np.floor(uvp[lit] + 0.5).astype(np.int16)
+        self._coef = coef_img.reshape(h, w, 3)
+        self._ambient = amb_img.reshape(h, w, 3)
+        self._map = maps.reshape(h, w, 2)
+        if not lit.any():
+            raise InputError(f"{where}: impossible set-up: the projector lights nothing the camera sees")
+        # ground truth
+        depth = np.zeros(npx, np.float32)
+        depth[idx] = X[:, 2]
+        pts = np.zeros((npx, 3), np.float32)
+        pts[idx] = X
+        col = np.full(npx, np.nan, np.float32)
+        row = np.full(npx, np.nan, np.float32)
+        col[lit_idx] = uvp[lit, 0]
+        row[lit_idx] = uvp[lit, 1]
+        lit_mask = np.zeros(npx, bool)
+        lit_mask[lit_idx] = True
+        self._gt = GroundTruth(
+            depth.reshape(h, w), col.reshape(h, w), row.reshape(h, w), lit_mask.reshape(h, w), pts.reshape(h, w, 3)
+        )
+
+    def _albedo(self, s: Shape, pix: np.ndarray, X: np.ndarray, n: np.ndarray, face: np.ndarray) -> np.ndarray:
+        ss = self.options.supersample
+        if not s.antialias or ss <= 1:
+            return s.albedo(X, face)
+        # Average the texture over ss x ss sub-pixel rays meeting the surface's tangent plane:
+        # sub-pixel ray directions from the local Jacobian of the (smooth) undistortion.
+        w, h = self.geometry.camera_size
+        rays = self._rays.reshape(h, w, 3)
+        xy = rays[..., :2] / rays[..., 2:3]
+        dx = np.gradient(xy, axis=1)
+        dy = np.gradient(xy, axis=0)
+        py, px = np.divmod(pix, w)
+        base = xy[py, px]
+        jx, jy = dx[py, px], dy[py, px]
+        offs = (np.arange(ss) + 0.5) / ss - 0.5
+        acc = np.zeros((len(pix), 3))
+        plane_d = np.einsum("ij,ij->i", n, X)
+        for oy in offs:
+            for ox in offs:
+                sxy = base + ox * jx + oy * jy
+                dsub = np.concatenate([sxy, np.ones((len(pix), 1))], axis=1)
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    tt = plane_d / np.einsum("ij,ij->i", n, dsub)
+                P = dsub * tt[:, None]
+                bad = ~np.isfinite(tt) | (tt <= 0)
+                P[bad] = X[bad]
+                acc += s.albedo(P, face)
+        return acc / (ss * ss)
+
+    # ------------------------------------------------------------------ frames
+    def _make_lut(self) -> np.ndarray:
+        x = np.arange(65536, dtype=np.float64) / 65535.0
+        y = np.power(x, 1.0 / self.options.camera_gamma) * self.max_value
+        return np.round(y).astype(np.uint16 if self.options.bit_depth == 16 else np.uint8)
+
+    def prepare(self, pattern: np.ndarray) -> PreparedPattern:
+        """Convert a projector image (Hp, Wp, 3) uint8 once; `render` accepts the result."""
+        p = np.asarray(pattern)
+        wp, hp = self.geometry.projector_size
+        if p.ndim == 2:
+            p = np.repeat(p[:, :, None], 3, axis=2)
+        if p.shape != (hp, wp, 3) or p.dtype != np.uint8:
+            raise InputError(
+                f"virtual projector: pattern must be uint8 RGB {wp}x{hp} (shape ({hp}, {wp}, 3)), "
+                f"found {p.dtype} shape {p.shape}"
+            )
+        o = self.options
+        lut = (o.black_level + o.brightness * (np.arange(256) / 255.0) ** o.projector_gamma).astype(np.float32)
+        lin = lut[p]
+        if o.defocus_sigma_px > 0:
+            lin = cv2.GaussianBlur(lin, (0, 0), o.defocus_sigma_px, borderType=cv2.BORDER_REPLICATE)
+        return PreparedPattern(np.ascontiguousarray(lin))
+
+    def black(self) -> PreparedPattern:
+        """The projector showing nothing (still leaking its black level)."""
+        if self._black is None:
+            wp, hp = self.geometry.projector_size
+            self._black = self.prepare(np.zeros((hp, wp, 3), np.uint8))
+        return self._black
+
+    def render(self, pattern: np.ndarray | PreparedPattern | None) -> np.ndarray:
+        """Camera image (H, W, 3) RGB uint8 (uint16 if 16-bit) of the scene under `pattern`.
+
+        None means the projector is dark. Noise differs per call and is deterministic per seed.
+        With motion, each call advances the moving objects by one frame and updates ground truth.
+        """
+        if any(self.options.motion_mm_per_frame) and self.frame_index > 0:
+            self._motion_step = self.frame_index
+            self._precompute(self._current_shapes())
+        self.frame_index += 1
+        prepared = pattern if isinstance(pattern, PreparedPattern) else None
+        if prepared is None:
+            prepared = self.black() if pattern is None else self.prepare(pattern)
+        return self._form(prepared.linear)
+
+    def _form(self, light: np.ndarray) -> np.ndarray:
+        o = self.options
+        h, w = self._coef.shape[:2]
+        proj = cv2.remap(light, self._map, None, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        img = cv2.multiply(proj, self._coef)
+        img = cv2.add(img, self._ambient)
+        if not np.array_equal(self._crosstalk, np.eye(3)):
+            img = cv2.transform(img, self._crosstalk.astype(np.float32))
+        if o.psf_sigma_px > 0:
+            img = cv2.GaussianBlur(img, (0, 0), o.psf_sigma_px * w / 640.0, borderType=cv2.BORDER_REPLICATE)
+        flat = img.reshape(h, w * 3)  # one channel, so OpenCV's scalar arithmetic covers all values
+        if self._noise_bank is not None:
+            var = cv2.add(cv2.multiply(cv2.max(flat, 0.0), 1.0 / o.full_well), o.read_noise**2)
+            start = int(self._rng.integers(0, len(self._noise_bank) - flat.size))
+            z = self._noise_bank[start : start + flat.size].reshape(h, w * 3)
+            flat = cv2.add(flat, cv2.multiply(cv2.sqrt(var), z))
+        code = cv2.multiply(flat, 65535.0, dtype=cv2.CV_16U)  # saturates: clipping at the top and at 0
+        return np.take(self._lut, code).reshape(h, w, 3)
+
+
+def _int_pair(v: object, key: str, where: str) -> tuple[int, int]:
+    if isinstance(v, str):
+        from app.patterns import parse_size
+
+        return parse_size(v)
+    if not (isinstance(v, list | tuple) and len(v) == 2 and all(isinstance(x, int | np.integer) for x in v)):
+        raise InputError(f"{where}: '{key}' must be [w, h] whole numbers, found {v!r}")
+    return int(v[0]), int(v[1])
+
+
+def preset_names() -> list[str]:
+    from drivers.sim.scene import SCENES_DIR
+
+    return sorted(p.stem for p in Path(SCENES_DIR).glob("*.yaml"))

@@ -1,0 +1,301 @@
+"""Analytic ray-cast shapes of the virtual rig, vectorised over many rays.
+
+Each shape has a pose (local -> camera: X = R x + c), a material and a texture. Rays are
+given in camera coordinates: origins (3,) or (N, 3), unit directions (N, 3). `intersect` returns
+the ray parameter t of the first hit (inf where the ray misses) and an integer `face` per ray
+(which face of a box; 0 otherwise). Local conventions: a plane lies in local z = 0 and faces
+local -z (the camera, when unrotated); the cylinder's axis is local y (image "down").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from drivers.sim.textures import Texture, Uniform
+
+INF = np.float64(np.inf)
+EPS_T = 1e-6  # mm: ignore hits this close to the ray origin (self-intersection on shadow rays)
+
+
+@dataclass
+class Material:
+    color: np.ndarray  # diffuse RGB reflectance 0..1 (the texture may override it)
+    specular: float = 0.0  # weight of a white Blinn-Phong lobe
+    shininess: float = 30.0
+
+
+@dataclass
+class Shape:
+    R: np.ndarray  # 3x3 local -> camera
+    c: np.ndarray  # (3,) local origin in camera coordinates
+    material: Material
+    texture: Texture = field(default_factory=lambda: Uniform())
+    name: str = ""
+    moves: bool = False  # follows the rig's motion_mm_per_frame
+    antialias: bool = False  # supersample the texture (calibration boards)
+
+    # -- frames
+    def to_local(self, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return (np.asarray(o, np.float64) - self.c) @ self.R, d @ self.R
+
+    def point_to_local(self, X: np.ndarray) -> np.ndarray:
+        return (X - self.c) @ self.R
+
+    def normal_to_camera(self, n_local: np.ndarray) -> np.ndarray:
+        return n_local @ self.R.T
+
+    # -- interface
+    def intersect(self, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+    def normal(self, X: np.ndarray, face: np.ndarray) -> np.ndarray:
+        """Outward unit normal in camera coordinates (the caller turns it toward the viewer)."""
+        raise NotImplementedError
+
+    def uv(self, X: np.ndarray, face: np.ndarray) -> np.ndarray:
+        """Texture coordinates in mm (N, 2) of camera-space points on the surface."""
+        xl = self.point_to_local(X)
+        return xl[:, :2]
+
+    def albedo(self, X: np.ndarray, face: np.ndarray) -> np.ndarray:
+        return self.texture.color(self.uv(X, face), face, self.material.color)
+
+    def translated(self, offset: np.ndarray) -> Shape:
+        import copy
+
+        s = copy.copy(self)
+        s.c = self.c + np.asarray(offset, np.float64)
+        return s
+
+
+def _first_positive(*ts: np.ndarray) -> np.ndarray:
+    out = np.full(ts[0].shape, INF)
+    for t in ts:
+        ok = (t > EPS_T) & (t < out)
+        out = np.where(ok, t, out)
+    return out
+
+
+@dataclass
+class Rectangle(Shape):
+    """A flat rectangle in local z = 0 covering [x0, x1] x [y0, y1] (mm)."""
+
+    extent: tuple[float, float, float, float] = (-100.0, 100.0, -100.0, 100.0)
+
+    def intersect(self, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        ol, dl = self.to_local(o, d)
+        ol = np.broadcast_to(ol, dl.shape)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = -ol[:, 2] / dl[:, 2]
+        x = ol[:, 0] + t * dl[:, 0]
+        y = ol[:, 1] + t * dl[:, 1]
+        x0, x1, y0, y1 = self.extent
+        ok = np.isfinite(t) & (t > EPS_T) & (x >= x0) & (x <= x1) & (y >= y0) & (y <= y1)
+        return np.where(ok, t, INF), np.zeros(len(t), np.int8)
+
+    def normal(self, X: np.ndarray, face: np.ndarray) -> np.ndarray:
+        return np.broadcast_to(self.normal_to_camera(np.array([0.0, 0.0, -1.0])), X.shape).copy()
+
+
+@dataclass
+class Box(Shape):
+    """An oriented box with half sizes `half` (mm); faces 0..5 = -x, +x, -y, +y, -z, +z."""
+
+    half: tuple[float, float, float] = (50.0, 50.0, 50.0)
+
+    def intersect(self, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        ol, dl = self.to_local(o, d)
+        ol = np.broadcast_to(ol, dl.shape)
+        h = np.asarray(self.half)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = 1.0 / dl
+            t1 = (-h - ol) * inv
+            t2 = (h - ol) * inv
+        tmin = np.fmin(t1, t2)
+        tmax = np.fmax(t1, t2)
+        t_near = np.max(tmin, axis=1)
+        t_far = np.min(tmax, axis=1)
+        axis_near = np.argmax(tmin, axis=1)
+        axis_far = np.argmin(tmax, axis=1)
+        hit = (t_far >= t_near) & (t_far > EPS_T)
+        outside = t_near > EPS_T
+        t = np.where(outside, t_near, t_far)
+        axis = np.where(outside, axis_near, axis_far)
+        rows = np.arange(len(t))
+        # which side: the sign of the local coordinate of the hit on that axis
+        coord = ol[rows, axis] + t * dl[rows, axis]
+        face = (2 * axis + (coord > 0)).astype(np.int8)
+        return np.where(hit, t, INF), face
+
+    def normal(self, X: np.ndarray, face: np.ndarray) -> np.ndarray:
+        n = np.zeros((len(face), 3))
+        axis = face // 2
+        n[np.arange(len(face)), axis] = np.where(face % 2 == 1, 1.0, -1.0)
+        return self.normal_to_camera(n)
+
+    def uv(self, X: np.ndarray, face: np.ndarray) -> np.ndarray:
+        """Per face: the two other local axes, origin at the face's corner, in mm."""
+        xl = self.point_to_local(X) + np.asarray(self.half)
+        axis = face // 2
+        u = np.where(axis == 0, xl[:, 2], xl[:, 0])
+        v = np.where(axis == 1, xl[:, 2], xl[:, 1])
+        return np.stack([u, v], axis=1)
+
+
+@dataclass
+class Sphere(Shape):
+    radius: float = 50.0
+
+    def intersect(self, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        oc = np.asarray(o, np.float64) - self.c
+        oc = np.broadcast_to(oc, d.shape)
+        b = np.einsum("ij,ij->i", oc, d)
+        cc = np.einsum("ij,ij->i", oc, oc) - self.radius**2
+        disc = b * b - cc
+        with np.errstate(invalid="ignore"):
+            s = np.sqrt(disc)
+        t = _first_positive(np.where(disc >= 0, -b - s, -1.0), np.where(disc >= 0, -b + s, -1.0))
+        return t, np.zeros(len(t), np.int8)
+
+    def normal(self, X: np.ndarray, face: np.ndarray) -> np.ndarray:
+        return (X - self.c) / self.radius
+
+    def uv(self, X: np.ndarray, face: np.ndarray) -> np.ndarray:
+        xl = self.point_to_local(X)
+        return np.stack([np.arctan2(xl[:, 0], -xl[:, 2]) * self.radius, xl[:, 1]], axis=1)
+
+
+@dataclass
+class Cylinder(Shape):
+    """A capped cylinder around local y, from y = -height/2 to +height/2."""
+
+    radius: float = 40.0
+    height: float = 120.0
+
+    def intersect(self, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        ol, dl = self.to_local(o, d)
+        ol = np.broadcast_to(ol, dl.shape)
+        hh = self.height / 2
+        a = dl[:, 0] ** 2 + dl[:, 2] ** 2
+        b = ol[:, 0] * dl[:, 0] + ol[:, 2] * dl[:, 2]
+        cc = ol[:, 0] ** 2 + ol[:, 2] ** 2 - self.radius**2
+        disc = b * b - a * cc
+        with np.errstate(invalid="ignore", divide="ignore"):
+            s = np.sqrt(disc)
+            ta = (-b - s) / a
+            tb = (-b + s) / a
+            tc1 = (-hh - ol[:, 1]) / dl[:, 1]
+            tc2 = (hh - ol[:, 1]) / dl[:, 1]
+        cands = []
+        for t in (ta, tb):
+            y = ol[:, 1] + t * dl[:, 1]
+            cands.append(np.where((disc >= 0) & (a > 1e-15) & (np.abs(y) <= hh), t, -1.0))
+        for t in (tc1, tc2):
+            x = ol[:, 0] + t * dl[:, 0]
+            z = ol[:, 2] + t * dl[:, 2]
+            cands.append(np.where(np.isfinite(t) & (x * x + z * z <= self.radius**2), t, -1.0))
+        t = _first_positive(*cands)
+        y = ol[:, 1] + t * dl[:, 1]
+        face = np.where(np.abs(np.abs(y) - hh) < 1e-6 * max(1.0, hh), 1, 0).astype(np.int8)
+        return t, face
+
+    def normal(self, X: np.ndarray, face: np.ndarray) -> np.ndarray:
+        xl = self.point_to_local(X)
+        side = np.stack([xl[:, 0], np.zeros(len(xl)), xl[:, 2]], axis=1) / self.radius
+        cap = np.stack([np.zeros(len(xl)), np.sign(xl[:, 1]), np.zeros(len(xl))], axis=1)
+        return self.normal_to_camera(np.where((face == 1)[:, None], cap, side))
+
+    def uv(self, X: np.ndarray, face: np.ndarray) -> np.ndarray:
+        xl = self.point_to_local(X)
+        return np.stack([np.arctan2(xl[:, 0], -xl[:, 2]) * self.radius, xl[:, 1] + self.height / 2], axis=1)
+
+
+@dataclass
+class Relief(Shape):
+    """A smooth bumpy surface z = -h(x, y) (toward the camera) over an elliptical support.
+
+    h is an ellipsoidal cap of height `depth` plus Gaussian bumps [(x, y, sigma_x, sigma_y, amp)],
+    all in mm: a "face-like" surface (forehead, brows, nose, cheeks, lips, chin).
+    """
+
+    semi_axes: tuple[float, float] = (70.0, 95.0)
+    depth: float = 60.0
+    bumps: tuple[tuple[float, float, float, float, float], ...] = ()
+
+    def height(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        a, b = self.semi_axes
+        r2 = (x / a) ** 2 + (y / b) ** 2
+        h = self.depth * np.sqrt(np.clip(1.0 - r2, 0.0, None))
+        for bx, by, sx, sy, amp in self.bumps:
+            h = h + amp * np.exp(-0.5 * (((x - bx) / sx) ** 2 + ((y - by) / sy) ** 2)) * (r2 < 1)
+        return h
+
+    def _hmax(self) -> float:
+        return self.depth + sum(max(0.0, b[4]) for b in self.bumps)
+
+    def intersect(self, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        ol, dl = self.to_local(o, d)
+        ol = np.broadcast_to(ol, dl.shape)
+        n = len(dl)
+        t_out = np.full(n, INF)
+        # bracket the slab -hmax <= z <= 0 that contains the surface
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ta = (-self._hmax() - 1.0 - ol[:, 2]) / dl[:, 2]
+            tb = (0.0 - ol[:, 2]) / dl[:, 2]
+        t0 = np.clip(np.fmin(ta, tb), EPS_T, None)
+        t1 = np.fmax(ta, tb)
+        ok = np.isfinite(t0) & np.isfinite(t1) & (t1 > t0)
+        # cheap rejection: rays whose slab segment misses the support ellipse's bounding box
+        a, b = self.semi_axes
+        with np.errstate(invalid="ignore"):
+            p0 = ol + np.where(ok, t0, 0)[:, None] * dl
+            p1 = ol + np.where(ok, t1, 0)[:, None] * dl
+        ok &= ~((np.minimum(p0[:, 0], p1[:, 0]) > a) | (np.maximum(p0[:, 0], p1[:, 0]) < -a))
+        ok &= ~((np.minimum(p0[:, 1], p1[:, 1]) > b) | (np.maximum(p0[:, 1], p1[:, 1]) < -b))
+        idx = np.nonzero(ok)[0]
+        if idx.size == 0:
+            return t_out, np.zeros(n, np.int8)
+        o_i, d_i, t0_i, t1_i = ol[idx], dl[idx], t0[idx], t1[idx]
+
+        def f(t: np.ndarray, sel: slice | np.ndarray = slice(None)) -> np.ndarray:
+            p = o_i[sel] + t[:, None] * d_i[sel]
+            inside = (p[:, 0] / a) ** 2 + (p[:, 1] / b) ** 2 < 1.0
+            # above the surface (toward the camera) is f > 0; outside the support the surface is z = 0+
+            return np.where(inside, -p[:, 2] - self.height(p[:, 0], p[:, 1]), 1.0)
+
+        steps = 48
+        found = np.zeros(len(idx), bool)
+        lo = np.zeros(len(idx))
+        hi = np.zeros(len(idx))
+        prev_t = t0_i.copy()
+        prev_f = f(prev_t)
+        for s in range(1, steps + 1):
+            t = t0_i + (t1_i - t0_i) * (s / steps)
+            fv = f(t)
+            cross = ~found & (prev_f > 0) & (fv <= 0)
+            lo = np.where(cross, prev_t, lo)
+            hi = np.where(cross, t, hi)
+            found |= cross
+            prev_t, prev_f = t, fv
+        sel = np.nonzero(found)[0]
+        lo, hi = lo[sel], hi[sel]
+        for _ in range(40):  # bisection: 48 steps of < 4 mm, then to well below 1e-6 mm
+            mid = 0.5 * (lo + hi)
+            above = f(mid, sel) > 0
+            lo = np.where(above, mid, lo)
+            hi = np.where(above, hi, mid)
+        t_out[idx[sel]] = 0.5 * (lo + hi)
+        return t_out, np.zeros(n, np.int8)
+
+    def normal(self, X: np.ndarray, face: np.ndarray) -> np.ndarray:
+        xl = self.point_to_local(X)
+        e = 1e-3
+        x, y = xl[:, 0], xl[:, 1]
+        hx = (self.height(x + e, y) - self.height(x - e, y)) / (2 * e)
+        hy = (self.height(x, y + e) - self.height(x, y - e)) / (2 * e)
+        # surface z = -h: outward (toward the camera) normal is (-(dz/dx), -(dz/dy), 1) flipped to -z
+        n = np.stack([-hx, -hy, -np.ones_like(hx)], axis=1)
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+        return self.normal_to_camera(n)
