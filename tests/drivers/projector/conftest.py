@@ -19,10 +19,11 @@ import pytest
 XVFB_SIZE = (1024, 768)
 
 
-def _start_xvfb(width: int, height: int) -> tuple[subprocess.Popen, str]:
+def _start_server(argv: list[str]) -> tuple[subprocess.Popen, str]:
+    """Start an X server with `-displayfd`; returns it and its display name once it accepts clients."""
     read_fd, write_fd = os.pipe()
     proc = subprocess.Popen(
-        ["Xvfb", "-displayfd", str(write_fd), "-screen", "0", f"{width}x{height}x24", "-nolisten", "tcp", "-nocursor"],
+        [argv[0], "-displayfd", str(write_fd), *argv[1:]],
         pass_fds=(write_fd,),
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
@@ -40,8 +41,17 @@ def _start_xvfb(width: int, height: int) -> tuple[subprocess.Popen, str]:
     if not number.strip().isdigit():
         proc.kill()
         err = proc.communicate(timeout=5)[1].decode(errors="replace")
-        raise RuntimeError(f"Xvfb did not start: {err.strip()[-500:]}")
+        raise RuntimeError(f"{argv[0]} did not start: {err.strip()[-500:]}")
     return proc, f":{int(number)}"
+
+
+def _stop_server(proc: subprocess.Popen) -> None:
+    proc.terminate()
+    try:
+        proc.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
 
 
 @pytest.fixture(scope="session")
@@ -49,16 +59,12 @@ def xserver() -> Iterator[str]:
     """The display name (":N") of a session-wide Xvfb, stopped at the end of the session."""
     if shutil.which("Xvfb") is None:
         pytest.skip("Xvfb is not installed (.ci/run installs it: apt-get install xvfb)")
-    proc, name = _start_xvfb(*XVFB_SIZE)
+    w, h = XVFB_SIZE
+    proc, name = _start_server(["Xvfb", "-screen", "0", f"{w}x{h}x24", "-nolisten", "tcp", "-nocursor"])
     try:
         yield name
     finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+        _stop_server(proc)
 
 
 @pytest.fixture
@@ -90,5 +96,63 @@ class ScreenGrabber:
 @pytest.fixture(scope="session")
 def screen_grabber(xserver: str) -> Iterator[ScreenGrabber]:
     grabber = ScreenGrabber(xserver)
+    yield grabber
+    grabber.close()
+
+
+# Two monitors on one X screen: Xorg's dummy driver with RandR outputs DUMMY0 (1024x768 at +0+0)
+# and DUMMY1 (800x600 at +1024+0), as a desktop with a projector on the right would look.
+DUMMY_CONF = """\
+Section "Device"
+    Identifier "dummy"
+    Driver "dummy"
+    VideoRam 64000
+EndSection
+Section "Monitor"
+    Identifier "monitor"
+    HorizSync 5.0-1000.0
+    VertRefresh 5.0-200.0
+    Modeline "1024x768" 63.50 1024 1072 1176 1328 768 771 775 798
+    Modeline "800x600" 38.25 800 832 912 1024 600 603 607 624
+EndSection
+Section "Screen"
+    Identifier "screen"
+    Device "dummy"
+    Monitor "monitor"
+    DefaultDepth 24
+    SubSection "Display"
+        Depth 24
+        Modes "1024x768"
+        Virtual 1824 768
+    EndSubSection
+EndSection
+"""
+DUMMY_DRIVER = "/usr/lib/xorg/modules/drivers/dummy_drv.so"
+
+
+@pytest.fixture(scope="session")
+def two_screen_xserver(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """The display name of an Xorg (dummy driver) with two monitors side by side."""
+    if shutil.which("Xorg") is None or not os.path.exists(DUMMY_DRIVER) or shutil.which("xrandr") is None:
+        pytest.skip("Xorg with the dummy driver is not installed (.ci/run: xserver-xorg-video-dummy)")
+    folder = tmp_path_factory.mktemp("xorg-dummy")
+    (folder / "xorg.conf").write_text(DUMMY_CONF)
+    argv = ["Xorg", "-config", str(folder / "xorg.conf"), "-logfile", str(folder / "xorg.log")]
+    proc, name = _start_server([*argv, "-noreset", "-nolisten", "tcp", "-nocursor"])
+    try:
+        env = {**os.environ, "DISPLAY": name}
+        for cmd in (
+            ["xrandr", "--addmode", "DUMMY1", "800x600"],
+            ["xrandr", "--output", "DUMMY1", "--mode", "800x600", "--right-of", "DUMMY0"],
+        ):
+            subprocess.run(cmd, env=env, check=True, capture_output=True, timeout=20)
+        yield name
+    finally:
+        _stop_server(proc)
+
+
+@pytest.fixture(scope="session")
+def two_screen_grabber(two_screen_xserver: str) -> Iterator[ScreenGrabber]:
+    grabber = ScreenGrabber(two_screen_xserver)
     yield grabber
     grabber.close()
