@@ -1,0 +1,644 @@
+"""Compiled (numba) per-pixel and per-row loops of the stripe decoders.
+
+`app/decode/reference.py` implements the same steps in plain numpy; the tests compare both.
+
+Vocabulary: a *code* is a pixel's stripe symbol (0..A-1, -1 = no value); a *run* is a maximal
+row segment of one code; two runs are *linked* when they can be neighbouring stripes (small gap,
+allowed transition); a *window* is k linked runs, identified through a lookup table; a window is
+*confirmed* when an adjacent window agrees with it; a *chain* is a row segment of consecutively
+labelled, linked runs, from which the columns are interpolated between sub-pixel stripe edges.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, nogil=True)
+def _block_extrema(feat, y, c, block, nb, bmax, bmin, absolute):
+    """Per block of `block` pixels along row y: max and min of feat[y, :, c] (or of |feat|)."""
+    W = feat.shape[1]
+    for b in range(nb):
+        hi = -np.inf
+        lo = np.inf
+        for x in range(b * block, min(W, (b + 1) * block)):
+            v = feat[y, x, c]
+            if absolute:
+                v = abs(v)
+            if v > hi:
+                hi = v
+            if v < lo:
+                lo = v
+        bmax[b] = hi
+        bmin[b] = lo
+
+
+@njit(cache=True, nogil=True)
+def twoshot_classify(f1, f2, unmix, t_abs, t_rel, block, code, feat):
+    """code[y, x] = bits (1 = channel max in frame 1, i.e. frame2 - frame1 < 0), -1 when unsure.
+
+    feat[y, x, c] = unmixed frame2 - frame1 of pattern channel c. A sign counts only when |d| is
+    above the noise floor t_abs and above t_rel times the channel's local amplitude (max |d| over
+    about 3 blocks), so coloured surfaces (small amplitude in one channel) keep their codes while
+    stripe edges (d crossing zero) and shadows (no amplitude) give no code.
+    """
+    H, W = code.shape
+    m = unmix.shape[0]
+    nb = (W + block - 1) // block
+    bmax = np.empty((m, nb), np.float32)
+    bmin = np.empty(nb, np.float32)
+    for y in range(H):
+        for x in range(W):
+            d0 = np.float32(f2[y, x, 0]) - np.float32(f1[y, x, 0])
+            d1 = np.float32(f2[y, x, 1]) - np.float32(f1[y, x, 1])
+            d2 = np.float32(f2[y, x, 2]) - np.float32(f1[y, x, 2])
+            for c in range(m):
+                feat[y, x, c] = unmix[c, 0] * d0 + unmix[c, 1] * d1 + unmix[c, 2] * d2
+        for c in range(m):
+            _block_extrema(feat, y, c, block, nb, bmax[c], bmin, True)
+        for x in range(W):
+            b = x // block
+            cd = 0
+            ok = True
+            for c in range(m):
+                a = bmax[c, b]
+                if b > 0 and bmax[c, b - 1] > a:
+                    a = bmax[c, b - 1]
+                if b + 1 < nb and bmax[c, b + 1] > a:
+                    a = bmax[c, b + 1]
+                thr = t_rel * a
+                if thr < t_abs:
+                    thr = t_abs
+                d = feat[y, x, c]
+                if abs(d) < thr:
+                    ok = False
+                    break
+                if d < 0:
+                    cd |= 1 << c
+            code[y, x] = cd if ok else -1
+
+
+@njit(cache=True, nogil=True)
+def oneshot_classify(img, unmix, colour_rows, t_abs, t_margin, block, use_hue, code, feat):
+    """code[y, x] = index of the stripe colour (0..N-1), -1 when unsure.
+
+    feat[y, x, c] = colour c's normalised level in [0, 1]. Local contrast normalisation (default):
+    each unmixed primary is rescaled by its own min and max over about 3 blocks of the row, which
+    discounts ambient light and surface colour channel by channel. With use_hue the unmixed
+    colour is only divided by its brightness (a hue/chromaticity classifier, the paper's choice).
+    """
+    H, W = code.shape
+    n = colour_rows.shape[0]
+    nb = (W + block - 1) // block
+    bmax = np.empty((3, nb), np.float32)
+    bmin = np.empty((3, nb), np.float32)
+    u = np.empty((W, 3), np.float32)
+    for y in range(H):
+        for x in range(W):
+            r = np.float32(img[y, x, 0])
+            g = np.float32(img[y, x, 1])
+            b = np.float32(img[y, x, 2])
+            for c in range(3):
+                u[x, c] = unmix[c, 0] * r + unmix[c, 1] * g + unmix[c, 2] * b
+                feat[y, x, c] = u[x, c]
+        if not use_hue:
+            for c in range(3):
+                _block_extrema(feat, y, c, block, nb, bmax[c], bmin[c], False)
+        for x in range(W):
+            bk = x // block
+            s = np.float32(0.0)
+            for c in range(3):
+                if use_hue:
+                    v = u[x, c]
+                    if v < 0:
+                        v = 0
+                    feat[y, x, c] = v
+                    s += v
+                else:
+                    hi = bmax[c, bk]
+                    lo = bmin[c, bk]
+                    if bk > 0:
+                        hi = max(hi, bmax[c, bk - 1])
+                        lo = min(lo, bmin[c, bk - 1])
+                    if bk + 1 < nb:
+                        hi = max(hi, bmax[c, bk + 1])
+                        lo = min(lo, bmin[c, bk + 1])
+                    span = hi - lo
+                    if span < t_abs:
+                        feat[y, x, c] = 0.0
+                    else:
+                        feat[y, x, c] = (u[x, c] - lo) / span
+            if use_hue:
+                if s < t_abs:
+                    for c in range(3):
+                        feat[y, x, c] = 0.0
+                else:
+                    for c in range(3):
+                        feat[y, x, c] /= s
+            best = -1
+            v1 = np.float32(-1.0)
+            v2 = np.float32(-1.0)
+            for i in range(n):
+                v = feat[y, x, colour_rows[i]]
+                if v > v1:
+                    v2 = v1
+                    v1 = v
+                    best = i
+                elif v > v2:
+                    v2 = v
+            code[y, x] = best if (v1 - v2 >= t_margin and v1 > 0) else -1
+
+
+@njit(cache=True, nogil=True)
+def _pixel_runs(code, feat, wts, link_ok, y, gap_max, rs, re, rc, link, edge, left, right):
+    """Runs of equal code along row y; link and sub-pixel edge (zero crossing) between neighbours."""
+    W = code.shape[1]
+    C = feat.shape[2]
+    nr = 0
+    x = 0
+    while x < W:
+        c = code[y, x]
+        if c < 0:
+            x += 1
+            continue
+        s = x
+        while x + 1 < W and code[y, x + 1] == c:
+            x += 1
+        rs[nr] = s
+        re[nr] = x
+        rc[nr] = c
+        left[nr] = s - 0.5
+        right[nr] = x + 0.5
+        nr += 1
+        x += 1
+    for j in range(nr - 1):
+        a = rc[j]
+        b = rc[j + 1]
+        link[j] = (rs[j + 1] - re[j] - 1 <= gap_max) and link_ok[a, b]
+        if not link[j]:
+            continue
+        xa = re[j] - 1 if re[j] - 1 >= rs[j] else re[j]
+        xb = rs[j + 1] + 1 if rs[j + 1] + 1 <= re[j + 1] else rs[j + 1]
+        mid = 0.5 * (re[j] + rs[j + 1])
+        best = mid
+        bestd = 1e9
+        for xx in range(xa, xb):
+            s0 = 0.0
+            s1 = 0.0
+            for c in range(C):
+                w = wts[a, b, c]
+                if w != 0:
+                    s0 += w * feat[y, xx, c]
+                    s1 += w * feat[y, xx + 1, c]
+            if s0 > 0 and s1 <= 0:
+                xz = xx + s0 / (s0 - s1)
+                if abs(xz - mid) < bestd:
+                    bestd = abs(xz - mid)
+                    best = xz
+        edge[j] = best
+    if nr > 0:
+        link[nr - 1] = False
+    return nr
+
+
+@njit(cache=True, nogil=True)
+def _sign_events(feat, y, c, thr_lo, block, nb, bmax, gap_max, ex, es, et):
+    """Events of channel c along row y: 0 = becomes known (sign es), 1 = sign change, 2 = unknown."""
+    W = feat.shape[1]
+    n = 0
+    last_x = -1
+    last_s = 0
+    last_d = 0.0
+    for x in range(W):
+        d = feat[y, x, c]
+        b = x // block
+        a = bmax[b]
+        if b > 0 and bmax[b - 1] > a:
+            a = bmax[b - 1]
+        if b + 1 < nb and bmax[b + 1] > a:
+            a = bmax[b + 1]
+        thr = thr_lo[1] * a
+        if thr < thr_lo[0]:
+            thr = thr_lo[0]
+        s = 1 if d >= thr else (-1 if d <= -thr else 0)
+        if s == 0:
+            continue
+        if last_s == 0:
+            ex[n] = x - 0.5
+            es[n] = s
+            et[n] = 0
+            n += 1
+        elif x - last_x - 1 > gap_max:
+            ex[n] = last_x + 0.5
+            es[n] = 0
+            et[n] = 2
+            n += 1
+            ex[n] = x - 0.5
+            es[n] = s
+            et[n] = 0
+            n += 1
+        elif s != last_s:
+            # the raw sign change between the two signed pixels, interpolated between neighbours
+            xz = last_x + last_d / (last_d - d) * (x - last_x)
+            for xx in range(last_x, x):
+                d0 = feat[y, xx, c]
+                d1 = feat[y, xx + 1, c]
+                if (d0 > 0) != (d1 > 0):
+                    xz = xx + d0 / (d0 - d1)
+                    break
+            ex[n] = xz
+            es[n] = s
+            et[n] = 1
+            n += 1
+        last_x = x
+        last_s = s
+        last_d = d
+    if last_s != 0:
+        ex[n] = last_x + 0.5
+        es[n] = 0
+        et[n] = 2
+        n += 1
+    return n
+
+
+@njit(cache=True, nogil=True)
+def _event_runs(feat, y, t_abs, t_rel, block, gap_max, bmax, ex, es, et, cnt, rs, re, rc, link, edge, left, right):
+    """Two-shot stripes of row y from the zero crossings of each channel's difference.
+
+    A stripe is the interval between two consecutive sign changes (of any channel) while every
+    channel has a sign, so a stripe narrower than a camera pixel is still seen as long as the
+    crossings around it are.
+    """
+    W = feat.shape[1]
+    m = feat.shape[2]
+    nb = (W + block - 1) // block
+    thr = np.empty(2, np.float32)
+    thr[0] = t_abs
+    thr[1] = t_rel
+    for c in range(m):
+        _block_extrema(feat, y, c, block, nb, bmax[c], bmax[m], True)
+        cnt[c] = _sign_events(feat, y, c, thr, block, nb, bmax[c], gap_max, ex[c], es[c], et[c])
+    ptr = np.zeros(3, np.int64)
+    sign = np.zeros(3, np.int64)
+    nr = 0
+    active = False
+    while True:
+        best = -1
+        bx = 1e18
+        for c in range(m):
+            if ptr[c] < cnt[c] and ex[c, ptr[c]] < bx:
+                bx = ex[c, ptr[c]]
+                best = c
+        if best < 0:
+            break
+        i = ptr[best]
+        ptr[best] += 1
+        if active:
+            right[nr - 1] = bx
+        was = active
+        sign[best] = es[best, i]
+        active = True
+        for c in range(m):
+            if sign[c] == 0:
+                active = False
+        if active:
+            cd = 0
+            for c in range(m):
+                if sign[c] < 0:
+                    cd |= 1 << c
+            left[nr] = bx
+            right[nr] = bx
+            rc[nr] = cd
+            if nr > 0:
+                link[nr - 1] = was and et[best, i] == 1
+                if link[nr - 1]:
+                    edge[nr - 1] = bx
+            nr += 1
+    for j in range(nr):
+        rs[j] = int(np.ceil(left[j]))
+        re[j] = int(np.floor(right[j]))
+    if nr > 0:
+        link[nr - 1] = False
+    return nr
+
+
+@njit(cache=True, nogil=True)
+def _label_row(
+    y,
+    nr,
+    rs,
+    re,
+    rc,
+    link,
+    edge,
+    left,
+    right,
+    tl,
+    pos,
+    lab,
+    nx,
+    nv,
+    colrow,
+    table,
+    A,
+    k,
+    period,
+    sw,
+    n_copies,
+    proj_w,
+    lo,
+    hi,
+    use_range,
+    edges_mode,
+    min_frac,
+    smooth,
+    sm,
+    out_col,
+    out_chain,
+    n_chains,
+):
+    """Windows -> confirmed labels -> chains -> interpolated columns of row y. Returns n_chains."""
+    W = out_col.shape[1]
+    if nr < k:
+        return n_chains
+    tl[nr] = 0
+    for j in range(nr - 1, -1, -1):
+        tl[j] = tl[j + 1] + 1 if link[j] else 0
+    for j in range(nr):
+        pos[j] = -1
+        if j + k <= nr and tl[j] >= k - 1:
+            key = 0
+            mul = 1
+            for t in range(k):
+                key += rc[j + t] * mul
+                mul *= A
+            pos[j] = table[key]
+    for i in range(nr):
+        lab[i] = -1
+    for j in range(nr):
+        p = pos[j]
+        if p < 0:
+            continue
+        conf = False
+        if j + 1 < nr and pos[j + 1] >= 0 and pos[j + 1] == (p + 1) % period:
+            conf = True
+        if j > 0 and pos[j - 1] >= 0 and p == (pos[j - 1] + 1) % period:
+            conf = True
+        if not conf:
+            continue
+        for t in range(k):
+            i = j + t
+            lv = (p + t) % period
+            if lab[i] == -1:
+                lab[i] = lv
+            elif lab[i] != lv:
+                lab[i] = -2
+    i = 0
+    while i < nr:
+        if lab[i] < 0:
+            i += 1
+            continue
+        i0 = i
+        while i + 1 < nr and link[i] and lab[i + 1] == (lab[i] + 1) % period:
+            i += 1
+        i1 = i
+        i += 1
+        if i1 - i0 + 1 < k:
+            continue
+        base = lab[i0]
+        nn = 0
+        if edges_mode:
+            for r in range(i0, i1):
+                e = edge[r]
+                if nn > 0 and e <= nx[nn - 1]:
+                    e = nx[nn - 1] + 1e-3
+                nx[nn] = e
+                nv[nn] = (base + (r - i0) + 1) * sw - 0.5
+                nn += 1
+        else:
+            for r in range(i0, i1 + 1):
+                c = 0.5 * (rs[r] + re[r])
+                if nn > 0 and c <= nx[nn - 1]:
+                    c = nx[nn - 1] + 1e-3
+                nx[nn] = c
+                nv[nn] = (base + (r - i0)) * sw + 0.5 * (sw - 1)
+                nn += 1
+        if smooth > 0 and nn > 2 * smooth:
+            # noise in single edge positions averages out over a few neighbouring edges: replace each
+            # node by a local straight-line fit x(v) over +-smooth nodes (surfaces are smooth within a chain)
+            for r in range(nn):
+                a0 = r - smooth
+                if a0 < 0:
+                    a0 = 0
+                a1 = a0 + 2 * smooth
+                if a1 > nn - 1:
+                    a1 = nn - 1
+                    a0 = a1 - 2 * smooth
+                sv = 0.0
+                sx = 0.0
+                svv = 0.0
+                svx = 0.0
+                cntn = a1 - a0 + 1
+                for q in range(a0, a1 + 1):
+                    sv += nv[q]
+                    sx += nx[q]
+                    svv += nv[q] * nv[q]
+                    svx += nv[q] * nx[q]
+                mv = sv / cntn
+                mx = sx / cntn
+                den = svv - cntn * mv * mv
+                slope_xv = (svx - cntn * mv * mx) / den if den > 0 else 0.0
+                sm[r] = mx + slope_xv * (nv[r] - mv)
+            for r in range(nn):
+                nx[r] = sm[r]
+                if r > 0 and nx[r] <= nx[r - 1]:
+                    nx[r] = nx[r - 1] + 1e-3
+        xa = int(np.ceil(left[i0]))
+        xb = int(np.floor(right[i1]))
+        if xa < 0:
+            xa = 0
+        if xb > W - 1:
+            xb = W - 1
+        if xb < xa:
+            continue
+        npx = xb - xa + 1
+        seg = 0
+        for xx in range(xa, xb + 1):
+            while seg + 2 < nn and xx > nx[seg + 1]:
+                seg += 1
+            slope = (nv[seg + 1] - nv[seg]) / (nx[seg + 1] - nx[seg])
+            colrow[xx] = nv[seg] + (xx - nx[seg]) * slope
+        shift = 0.0
+        if use_range:
+            best_q = -1
+            best_n = 0
+            second_n = 0
+            for q in range(n_copies):
+                off = q * period * sw
+                cnt = 0
+                for xx in range(xa, xb + 1):
+                    v = colrow[xx] + off
+                    if v >= lo[y, xx] and v <= hi[y, xx] and v <= proj_w - 0.5:
+                        cnt += 1
+                if cnt > best_n:
+                    second_n = best_n
+                    best_n = cnt
+                    best_q = q
+                elif cnt > second_n:
+                    second_n = cnt
+            if best_q < 0 or best_n < min_frac * npx or second_n > 0.5 * best_n:
+                continue
+            shift = best_q * period * sw
+        # pixels of the end stripes lie within one stripe of the outer edges; beyond is a guess
+        lo_v = nv[0] - sw if edges_mode else nv[0] - 0.5 * sw
+        hi_v = nv[nn - 1] + sw if edges_mode else nv[nn - 1] + 0.5 * sw
+        for xx in range(xa, xb + 1):
+            if colrow[xx] < lo_v or colrow[xx] > hi_v:
+                continue
+            v = colrow[xx] + shift
+            if use_range and (v < lo[y, xx] or v > hi[y, xx]):
+                continue
+            out_col[y, xx] = v
+            out_chain[y, xx] = n_chains
+        n_chains += 1
+    return n_chains
+
+
+@njit(cache=True, nogil=True)
+def label_rows(
+    code,
+    feat,
+    wts,
+    link_ok,
+    table,
+    k,
+    period,
+    sw,
+    n_copies,
+    proj_w,
+    gap_max,
+    lo,
+    hi,
+    use_range,
+    edges_mode,
+    min_frac,
+    events,
+    t_abs,
+    t_rel,
+    block,
+    smooth,
+    out_col,
+    out_chain,
+):
+    """Rows -> sub-pixel projector columns (NaN = none). Returns the number of chains.
+
+    Stripes come from pixel runs of equal code (events=False) or, for two-shot, from the zero
+    crossings of each channel (events=True). lo/hi: per pixel, the projector columns the depth
+    range allows (use_range); the copy of a periodic sequence is chosen per chain as the one whose
+    columns fall inside that interval for at least min_frac of its pixels, with no other copy
+    close: else no value.
+    """
+    H, W = code.shape
+    m = feat.shape[2]
+    A = link_ok.shape[0]
+    n = (m + 1) * (2 * W + 8)
+    rs = np.empty(n, np.int64)
+    re = np.empty(n, np.int64)
+    rc = np.empty(n, np.int64)
+    link = np.zeros(n, np.bool_)
+    edge = np.zeros(n, np.float64)
+    left = np.zeros(n, np.float64)
+    right = np.zeros(n, np.float64)
+    tl = np.zeros(n + 1, np.int64)
+    pos = np.empty(n, np.int64)
+    lab = np.empty(n, np.int64)
+    nx = np.empty(n, np.float64)
+    nv = np.empty(n, np.float64)
+    sm = np.empty(n, np.float64)
+    colrow = np.empty(W, np.float64)
+    nb = (W + block - 1) // block
+    bmax = np.empty((m + 1, nb), np.float32)
+    ex = np.empty((m, n), np.float64)
+    es = np.empty((m, n), np.int64)
+    et = np.empty((m, n), np.int64)
+    cnt = np.zeros(m, np.int64)
+    n_chains = 0
+    for y in range(H):
+        if events:
+            nr = _event_runs(
+                feat, y, t_abs, t_rel, block, gap_max, bmax, ex, es, et, cnt, rs, re, rc, link, edge, left, right
+            )
+        else:
+            nr = _pixel_runs(code, feat, wts, link_ok, y, gap_max, rs, re, rc, link, edge, left, right)
+        n_chains = _label_row(
+            y,
+            nr,
+            rs,
+            re,
+            rc,
+            link,
+            edge,
+            left,
+            right,
+            tl,
+            pos,
+            lab,
+            nx,
+            nv,
+            colrow,
+            table,
+            A,
+            k,
+            period,
+            sw,
+            n_copies,
+            proj_w,
+            lo,
+            hi,
+            use_range,
+            edges_mode,
+            min_frac,
+            smooth,
+            sm,
+            out_col,
+            out_chain,
+            n_chains,
+        )
+    return n_chains
+
+
+@njit(cache=True, nogil=True)
+def vertical_check(out_col, out_chain, n_chains, tol):
+    """Drop chains that disagree with the rows above and below more often than they agree."""
+    H, W = out_col.shape
+    agree = np.zeros(max(n_chains, 1), np.int32)
+    disagree = np.zeros(max(n_chains, 1), np.int32)
+    for y in range(H):
+        for x in range(W):
+            c = out_chain[y, x]
+            if c < 0:
+                continue
+            v = out_col[y, x]
+            for dy in (-1, 1):
+                yy = y + dy
+                if yy < 0 or yy >= H:
+                    continue
+                if out_chain[yy, x] < 0:
+                    continue
+                if abs(out_col[yy, x] - v) <= tol:
+                    agree[c] += 1
+                else:
+                    disagree[c] += 1
+    dropped = 0
+    for c in range(n_chains):
+        if disagree[c] > agree[c]:
+            dropped += 1
+    if dropped:
+        for y in range(H):
+            for x in range(W):
+                c = out_chain[y, x]
+                if c >= 0 and disagree[c] > agree[c]:
+                    out_col[y, x] = np.nan
+                    out_chain[y, x] = -1
+    return dropped

@@ -1,0 +1,47 @@
+"""The decoders' common output: a projector column per camera pixel, or none."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class StripeMap:
+    """Per camera pixel: sub-pixel projector column (NaN = no value) and what it rests on.
+
+    `column` is in projector pixels, pixel centres at integers (stripe s of width w covers
+    columns s*w .. s*w+w-1). `chain` numbers the row segments a value was decoded from (-1 none);
+    `confidence` is 0 where there is no value, else in (0, 1].
+    """
+
+    column: np.ndarray  # (H, W) float32, NaN where no value
+    confidence: np.ndarray  # (H, W) float32
+    stripe_width: int = 1
+    period: int = 0  # stripes in one period of the sequence (0 = not periodic, e.g. Gray code)
+    copy_known: bool = True  # False when no geometry was given to choose between repeated copies
+    chain: np.ndarray | None = field(default=None, repr=False)
+    info: dict = field(default_factory=dict)  # counts for logs and benches
+
+    @property
+    def valid(self) -> np.ndarray:
+        return np.isfinite(self.column)
+
+    @property
+    def stripe(self) -> np.ndarray:
+        """Projector stripe number per pixel (-1 = none), for pseudo-colour displays."""
+        out = np.full(self.column.shape, -1, np.int32)
+        v = self.valid
+        out[v] = np.floor((self.column[v] + 0.5) / self.stripe_width).astype(np.int32)
+        return out
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.column.shape  # type: ignore[return-value]
+
+
+def empty_stripe_map(shape: tuple[int, int], stripe_width: int = 1, period: int = 0) -> StripeMap:
+    return StripeMap(
+        np.full(shape, np.nan, np.float32), np.zeros(shape, np.float32), stripe_width=stripe_width, period=period
+    )

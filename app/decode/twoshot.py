@@ -1,0 +1,91 @@
+"""Two-shot decoder (paper section 4): stripe codes from the signs of frame2 - frame1.
+
+Per pixel and pattern channel, the unmixed difference d = frame2 - frame1 is negative where the
+channel was at max in frame 1 (code bit 1) and positive where it was at min. Ambient light and
+surface colour scale |d| but never flip its sign, so only |d| too small for a sign (shadow,
+black surface, clipping in both frames, a stripe edge) gives no code. Adjacent stripes differ in
+exactly one channel, whose d crosses zero at the edge: that zero crossing is the sub-pixel node.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from app.decode import kernels
+from app.decode.colour import channel_rows, unmixing_matrix
+from app.decode.stripemap import StripeMap
+from app.decode.windows import LabelParams, WindowSpec, label, window_lookup
+from app.errors import InputError
+
+
+@dataclass(frozen=True)
+class TwoShotParams:
+    t_abs: float = 6.0  # noise floor of |d| in 8-bit camera units (scaled by 257 for 16-bit frames)
+    t_rel: float = 0.2  # |d| must reach this share of the channel's local amplitude
+    block: int = 8  # pixels per block of the local-amplitude estimate
+    t_rel_edges: float = 0.08  # event mode: a sign (either side of a zero crossing) needs this share
+    label: LabelParams = field(default_factory=lambda: LabelParams(events=True))
+
+
+def two_shot_spec(pattern_params: dict, proj_width: int) -> WindowSpec:
+    seq = [int(v) for v in pattern_params["sequence"]]
+    m = len(pattern_params["channels"])
+    k = int(pattern_params["k"])
+    A = 1 << m
+    link_ok = np.zeros((A, A), np.bool_)
+    weights = np.zeros((A, A, m), np.float32)
+    for a in range(A):
+        for b in range(A):
+            diff = a ^ b
+            if diff.bit_count() == 1:
+                link_ok[a, b] = True
+                c = diff.bit_length() - 1
+                weights[a, b, c] = -1.0 if (a >> c) & 1 else 1.0  # bit 1 = d < 0 on the a side
+    return WindowSpec(
+        window_lookup(seq, k, A), link_ok, weights, k, len(seq), int(pattern_params["stripe_width"]), proj_width
+    )
+
+
+class TwoShotDecoder:
+    """Decode (frame 1, frame 2) pairs of one pattern export, optionally with depth-range geometry."""
+
+    shots = 2
+
+    def __init__(
+        self,
+        pattern_params: dict,
+        proj_width: int,
+        color_mixing: np.ndarray | None = None,
+        column_range: tuple[np.ndarray, np.ndarray] | None = None,
+        params: TwoShotParams | None = None,
+    ) -> None:
+        self.params = params or TwoShotParams()
+        self.spec = two_shot_spec(pattern_params, proj_width)
+        self.channels = str(pattern_params["channels"])
+        self.unmix = channel_rows(unmixing_matrix(color_mixing), self.channels)
+        self.column_range = column_range
+
+    def classify(self, frame1: np.ndarray, frame2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per-pixel codes (-1 = none) and the unmixed differences."""
+        if frame1.shape != frame2.shape or frame1.ndim != 3 or frame1.shape[2] != 3:
+            raise InputError(f"frames of a pair differ in size or are not RGB: {frame1.shape} vs {frame2.shape}")
+        H, W = frame1.shape[:2]
+        scale = 257.0 if frame1.dtype == np.uint16 else 1.0
+        code = np.empty((H, W), np.int8)
+        feat = np.empty((H, W, self.unmix.shape[0]), np.float32)
+        p = self.params
+        kernels.twoshot_classify(
+            frame1, frame2, self.unmix, np.float32(p.t_abs * scale), np.float32(p.t_rel), p.block, code, feat
+        )
+        return code, feat
+
+    def decode(self, frame1: np.ndarray, frame2: np.ndarray, reversed_order: bool = False) -> StripeMap:
+        """frame1 saw pattern 0 and frame2 pattern 1; reversed_order=True if they are given the other way."""
+        if reversed_order:
+            frame1, frame2 = frame2, frame1
+        code, feat = self.classify(frame1, frame2)
+        p = self.params
+        scale = 257.0 if frame1.dtype == np.uint16 else 1.0
+        return label(code, feat, self.spec, p.label, self.column_range, (p.t_abs * scale, p.t_rel_edges, p.block))

@@ -1,0 +1,102 @@
+"""Stripe identification by windows of k stripes, shared by the one-shot and two-shot decoders."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from app.decode import kernels
+from app.decode.stripemap import StripeMap
+from app.patterns import window_table
+
+EMPTY_RANGE = np.zeros((1, 1), np.float32)
+
+
+def window_lookup(sequence: Sequence[int], k: int, alphabet: int) -> np.ndarray:
+    """Array over window keys sum(code[t] * alphabet**t) -> start index in the sequence, or -1."""
+    table = np.full(alphabet**k, -1, np.int32)
+    powers = alphabet ** np.arange(k)
+    for window, start in window_table(sequence, k).items():
+        table[int(np.dot(window, powers))] = start
+    return table
+
+
+@dataclass(frozen=True)
+class WindowSpec:
+    """Everything `kernels.label_rows` needs to know about a stripe sequence."""
+
+    table: np.ndarray  # (A**k,) int32
+    link_ok: np.ndarray  # (A, A) bool: codes allowed to be neighbouring stripes
+    weights: np.ndarray  # (A, A, C) float32: edge signal a->b = sum_c w * feat[..., c], > 0 on the a side
+    k: int
+    period: int
+    stripe_width: int
+    proj_width: int
+
+    @property
+    def n_copies(self) -> int:
+        return -(-self.proj_width // (self.period * self.stripe_width))
+
+
+@dataclass(frozen=True)
+class LabelParams:
+    gap_max: int = 2  # camera pixels without a code allowed between neighbouring stripes
+    edges: bool = True  # sub-pixel nodes at stripe edges (zero crossings) instead of stripe centres
+    vertical_tol: float = 2.0  # projector px: a value agrees with the rows above/below within this
+    min_frac: float = 0.7  # share of a chain's pixels inside the depth range for its copy to be chosen
+    smooth: int = 2  # sub-pixel nodes: local line fit over +-smooth neighbouring nodes (0 = raw)
+    events: bool = False  # two-shot: stripes from per-channel zero crossings instead of pixel runs
+
+
+def label(
+    code: np.ndarray,
+    feat: np.ndarray,
+    spec: WindowSpec,
+    params: LabelParams,
+    column_range: tuple[np.ndarray, np.ndarray] | None,
+    thresholds: tuple[float, float, int] = (0.0, 0.0, 8),
+) -> StripeMap:
+    """Identify stripes row by row; thresholds (t_abs, t_rel, block) apply to the event mode."""
+    H, W = code.shape
+    col = np.full((H, W), np.nan, np.float32)
+    chain = np.full((H, W), -1, np.int32)
+    use_range = column_range is not None
+    lo, hi = column_range if use_range else (EMPTY_RANGE, EMPTY_RANGE)
+    n = kernels.label_rows(
+        code,
+        feat,
+        spec.weights,
+        spec.link_ok,
+        spec.table,
+        spec.k,
+        spec.period,
+        spec.stripe_width,
+        spec.n_copies,
+        spec.proj_width,
+        params.gap_max,
+        lo,
+        hi,
+        use_range,
+        params.edges,
+        params.min_frac,
+        params.events,
+        np.float32(thresholds[0]),
+        np.float32(thresholds[1]),
+        int(thresholds[2]),
+        params.smooth,
+        col,
+        chain,
+    )
+    dropped = kernels.vertical_check(col, chain, n, params.vertical_tol) if params.vertical_tol > 0 else 0
+    conf = np.where(np.isfinite(col), np.float32(1.0), np.float32(0.0))
+    return StripeMap(
+        col,
+        conf,
+        stripe_width=spec.stripe_width,
+        period=spec.period,
+        copy_known=use_range or spec.n_copies == 1,
+        chain=chain,
+        info={"chains": int(n), "chains_dropped": int(dropped)},
+    )
