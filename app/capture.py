@@ -1,0 +1,413 @@
+"""The capture loop: pace the rig, tag every camera frame with the pattern it saw, check the tag,
+and group checked frames into frame sets (sliding pairs for two-shot).
+
+ARCHITECTURE.md: "a swapped two-shot pair inverts every sign and decodes to wrong but plausible
+stripes", so a tag is never assumed. Every frame is placed on the loop's own schedule (its *tick*:
+the n-th projector refresh since start) from the camera's counters, and its tag is the pattern the
+flip log says the projector showed at that tick. The frame is refused (counted, never paired) when
+
+- its tick cannot be established (no flip recorded there, counters not yet anchored after a reset),
+- the flip at its tick was late (the camera may have seen the previous pattern),
+- a tag reported by the device (trigger-box phase marker, a camera line input) disagrees,
+- its frame_id repeats or goes back (a duplicate or a swap in delivery), or its image is a byte-for-
+  byte repeat of the previous frame (a duplicated buffer under a new id).
+
+A frame_id gap (a dropped frame) only breaks the current pair. The pure part (`FrameChecker`) has
+no devices and no clock, so the pairing rules are unit-tested directly; `CaptureLoop` drives the
+devices. Grouping uses `app.framesets.group_frame_sets` on the last frames, so the live session and
+`slscan decode` follow one rule.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from app.framesets import group_frame_sets
+from drivers.base import Camera, Frame, Projector, Trigger
+
+# A frame whose exposure began less than this after its flip may have seen the previous pattern.
+DEFAULT_FLIP_GUARD_NS = 0
+
+
+@dataclass(frozen=True)
+class Shown:
+    """One flip-log entry: at `tick` the projector was asked to show `pattern`, and flipped at flip_ns."""
+
+    tick: int
+    pattern: int | None
+    flip_ns: int
+    late: bool = False  # the flip missed its refresh: the frame of this tick is not trusted
+
+
+class FlipLog:
+    """Bounded record tick -> Shown (the newest `maxlen` ticks)."""
+
+    def __init__(self, maxlen: int = 4096) -> None:
+        self._entries: dict[int, Shown] = {}
+        self._order: deque[int] = deque()
+        self.maxlen = maxlen
+
+    def record(self, shown: Shown) -> None:
+        if shown.tick not in self._entries:
+            self._order.append(shown.tick)
+        self._entries[shown.tick] = shown
+        while len(self._order) > self.maxlen:
+            self._entries.pop(self._order.popleft(), None)
+
+    def get(self, tick: int) -> Shown | None:
+        return self._entries.get(tick)
+
+    def mark_late(self, tick: int) -> None:
+        s = self._entries.get(tick)
+        if s is not None:
+            self._entries[tick] = dataclasses.replace(s, late=True)
+
+
+@dataclass
+class CaptureStats:
+    """Counters the status line and the bench print; every refused frame is counted once."""
+
+    frames: int = 0  # frames received from the camera
+    tagged: int = 0  # frames whose tag passed every check
+    dropped: int = 0  # frames missing from the camera stream (frame_id gaps)
+    duplicates: int = 0  # a frame_id or an image received twice
+    out_of_order: int = 0  # frame_id went back (frames swapped in delivery)
+    mistagged: int = 0  # tag evidence disagreed: device tag vs flip log, or a late flip
+    untracked: int = 0  # no flip recorded at the frame's tick, or counters not anchored
+    resyncs: int = 0  # a counter reset (trigger box reboot, camera restart) re-anchored the schedule
+    sets: int = 0  # complete frame sets handed on
+
+    @property
+    def refused(self) -> int:
+        """Frames that would have made a mispaired set had the tag been assumed."""
+        return self.duplicates + self.out_of_order + self.mistagged + self.untracked
+
+    def as_dict(self) -> dict:
+        d = dataclasses.asdict(self)
+        d["refused"] = self.refused
+        return d
+
+
+@dataclass(frozen=True)
+class FrameSet:
+    """The frames of one pattern cycle, in pattern order (frames[p] saw pattern p)."""
+
+    frames: tuple[Frame, ...]
+    reversed_order: bool = False  # two-shot: the pattern-1 frame came first in time
+    arrival_ns: int = 0  # host time the newest frame of the set arrived (for latency)
+
+    @property
+    def frame_ids(self) -> tuple[int, ...]:
+        return tuple(f.frame_id for f in self.frames)
+
+    @property
+    def newest(self) -> Frame:
+        return max(self.frames, key=lambda f: f.frame_id)
+
+
+@dataclass
+class _Accepted:
+    frame: Frame
+    tick: int
+
+
+@dataclass
+class FrameChecker:
+    """Tag, check and pair frames (pure: no devices, no clock).
+
+    scheme, n_patterns: of the pattern set; the projector shows pattern `order[t % len(order)]`
+    at tick t (the loop records that in `flips`). Frames are placed on ticks by
+    `trigger_count` (the trigger box's count of this exposure, 1 = first trigger after the anchor)
+    when the camera reports it, else by frame_id relative to the first frame.
+    """
+
+    scheme: str
+    n_patterns: int
+    flips: FlipLog = field(default_factory=FlipLog)
+    sliding: bool = True
+    check_content: bool = True
+    # Replay: the frames carry tags checked when they were recorded (no projector, no flip log).
+    device_tags: bool = False
+    stats: CaptureStats = field(default_factory=CaptureStats)
+
+    def __post_init__(self) -> None:
+        self._history: deque[_Accepted] = deque(maxlen=max(2, self.n_patterns))
+        self._trigger_base: int | None = 0  # tick of trigger count 1; None = waiting for an anchor
+        self._id_base: int | None = None  # tick = frame_id - _id_base when no trigger count
+        self._last_trigger: int | None = None
+        self._last_id: int | None = None
+        self._last_sample: bytes | None = None
+        self.last_reason: str = ""
+
+    # ------------------------------------------------------------------ anchoring
+
+    def anchor_trigger(self, tick_of_first_trigger: int) -> None:
+        """The trigger was (re)started so that its count 1 fires at this tick."""
+        self._trigger_base = tick_of_first_trigger
+        self._last_trigger = None
+
+    def anchor_frame_id(self, frame_id: int, tick: int) -> None:
+        """Camera frame `frame_id` was exposed at `tick` (used when frames carry no trigger count)."""
+        self._id_base = frame_id - tick
+
+    def reset_pairing(self) -> None:
+        self._history.clear()
+
+    # ------------------------------------------------------------------ per frame
+
+    def _refuse(self, counter: str, reason: str, *, break_pair: bool = True) -> tuple[None, None]:
+        setattr(self.stats, counter, getattr(self.stats, counter) + 1)
+        self.last_reason = reason
+        if break_pair:
+            self._history.clear()
+        return None, None
+
+    def tick_of(self, frame: Frame) -> int | None:
+        if self.device_tags:
+            return frame.frame_id
+        if frame.trigger_count is not None:
+            if self._trigger_base is None:
+                return None
+            return self._trigger_base + frame.trigger_count - 1
+        if self._id_base is None:
+            return None
+        return frame.frame_id - self._id_base
+
+    def push(self, frame: Frame, arrival_ns: int = 0) -> tuple[Frame | None, FrameSet | None]:
+        """Check one frame; returns (the frame with its tag, or None if refused; a completed set or None)."""
+        st = self.stats
+        st.frames += 1
+        # Counter resets: the trigger box rebooted (count back to <= last) or the camera restarted.
+        if frame.trigger_count is not None:
+            if self._last_trigger is not None and frame.trigger_count <= self._last_trigger:
+                if frame.trigger_count == self._last_trigger and frame.frame_id == self._last_id:
+                    return self._refuse("duplicates", f"frame {frame.frame_id} received twice", break_pair=False)
+                st.resyncs += 1
+                self._trigger_base = None  # the loop re-anchors when it restarts the trigger
+                self._last_trigger = frame.trigger_count
+                return self._refuse("untracked", "trigger counter went back (box reset?): waiting to re-anchor")
+            self._last_trigger = frame.trigger_count
+        prev_id = self._last_id
+        if prev_id is not None:
+            if frame.frame_id == prev_id:
+                return self._refuse("duplicates", f"frame {frame.frame_id} received twice", break_pair=False)
+            if frame.frame_id < prev_id:
+                if frame.trigger_count is None and prev_id - frame.frame_id > 64:
+                    # The camera restarted its counter: re-anchor on the next frame of a known tick.
+                    st.resyncs += 1
+                    self._id_base = None
+                    self._last_id = frame.frame_id
+                    return self._refuse("untracked", "camera frame counter restarted: waiting to re-anchor")
+                return self._refuse("out_of_order", f"frame {frame.frame_id} arrived after frame {prev_id}")
+        self._last_id = frame.frame_id
+        if self.check_content:
+            sample = _content_sample(frame.image)
+            if sample == self._last_sample:
+                return self._refuse("duplicates", f"frame {frame.frame_id} repeats the previous image")
+            self._last_sample = sample
+        tick = self.tick_of(frame)
+        if tick is None:
+            return self._refuse("untracked", f"frame {frame.frame_id}: schedule not anchored")
+        shown = Shown(tick, frame.pattern, frame.timestamp_ns) if self.device_tags else self.flips.get(tick)
+        if shown is None or shown.pattern is None:
+            return self._refuse("untracked", f"frame {frame.frame_id}: no pattern recorded at tick {tick}")
+        if shown.late:
+            return self._refuse("mistagged", f"frame {frame.frame_id}: the flip at tick {tick} was late")
+        if not 0 <= shown.pattern < self.n_patterns:
+            return self._refuse("mistagged", f"frame {frame.frame_id}: tag {shown.pattern} outside the scheme")
+        if frame.pattern is not None and frame.pattern != shown.pattern:
+            return self._refuse(
+                "mistagged",
+                f"frame {frame.frame_id}: device tag {frame.pattern} != pattern {shown.pattern} shown at tick {tick}",
+            )
+        tagged = dataclasses.replace(frame, pattern=shown.pattern)
+        st.tagged += 1
+        if self._history:
+            last = self._history[-1]
+            gap = frame.frame_id - last.frame.frame_id
+            if gap > 1:
+                st.dropped += gap - 1
+                self._history.clear()
+            elif tick != last.tick + 1:
+                # ids consecutive but ticks not: the two counters disagree; trust neither for a pair.
+                self._history.clear()
+        self._history.append(_Accepted(tagged, tick))
+        return tagged, self._complete_set(arrival_ns)
+
+    def _complete_set(self, arrival_ns: int) -> FrameSet | None:
+        need = 1 if self.scheme == "one-shot" else 2 if self.scheme == "two-shot" else self.n_patterns
+        if len(self._history) < need:
+            return None
+        window = list(self._history)[-need:]
+        # Ticks stand in for frame ids: the checks above made both consecutive together.
+        tags = [(a.tick, int(a.frame.pattern)) for a in window]  # type: ignore[arg-type]
+        sets, _ = group_frame_sets(tags, self.scheme, self.n_patterns, sliding=True)
+        if not sets or sets[-1].first != 0:
+            return None
+        fs = sets[-1]
+        frames = tuple(window[i].frame for i in fs.indices)
+        if not self.sliding or self.scheme == "graycode":
+            self._history.clear()
+        self.stats.sets += 1
+        return FrameSet(frames, fs.reversed_order, arrival_ns)
+
+
+def _content_sample(image: np.ndarray) -> bytes:
+    """A few sparse rows of the image: identical bytes mean the same buffer delivered twice (sensors are noisy)."""
+    h = image.shape[0]
+    return image[h // 7 :: max(1, h // 5)].tobytes()
+
+
+# ------------------------------------------------------------------------------------- the loop
+
+
+def pattern_order(scheme: str, n_patterns: int) -> list[int]:
+    """Projection order: two-shot alternates 0, 1, 0, 1 (so sliding pairs give a set per frame)."""
+    return list(range(n_patterns)) if scheme != "one-shot" else [0]
+
+
+@dataclass
+class LoopEvent:
+    """What one step of the loop produced."""
+
+    frame: Frame | None  # tagged frame (None if refused)
+    raw: Frame  # the frame as the camera gave it
+    frameset: FrameSet | None
+    arrival_ns: int
+    reason: str = ""  # why the frame was refused
+
+
+class CaptureLoop:
+    """Drive projector + trigger + camera at `rate_hz`, tag, check and pair every frame.
+
+    Each step: wait for the tick's deadline (unless the projector's `show` blocks on vsync),
+    show the tick's pattern and log the flip, grab the next camera frame (whatever tick it belongs
+    to: the checker places it by its counters), and check it. All device calls happen on the
+    thread that calls `step` (pyglet windows require it).
+    """
+
+    def __init__(
+        self,
+        camera: Camera,
+        projector: Projector | None,
+        trigger: Trigger | None,
+        scheme: str,
+        n_patterns: int,
+        *,
+        rate_hz: float = 60.0,
+        timeout_s: float = 2.0,
+        pace: bool = True,
+        late_ns: int | None = None,
+        trigger_poll: int = 15,
+        clock: Callable[[], int] = time.monotonic_ns,
+    ) -> None:
+        self.camera, self.projector, self.trigger = camera, projector, trigger
+        self.scheme = scheme
+        self.order = pattern_order(scheme, n_patterns)
+        self.rate_hz = rate_hz
+        self.period_ns = int(1e9 / rate_hz)
+        self.timeout_s = timeout_s
+        self.pace = pace
+        self.late_ns = late_ns if late_ns is not None else self.period_ns // 2
+        self.clock = clock
+        self.trigger_poll = max(1, trigger_poll)
+        self.flips = FlipLog()
+        # No projector (replay): the frames carry their recorded tags.
+        self.checker = FrameChecker(scheme, n_patterns, self.flips, device_tags=projector is None)
+        self.tick = 0
+        self._deadline = 0
+        self._started = False
+        self._trigger_last = 0
+
+    @property
+    def stats(self) -> CaptureStats:
+        return self.checker.stats
+
+    def start(self) -> None:
+        self.camera.start()
+        if self.trigger is not None:
+            self.trigger.start(self.rate_hz)
+            self._trigger_last = 0
+        self.checker.anchor_trigger(0)
+        self._deadline = self.clock()
+        self._started = True
+
+    def _show(self) -> None:
+        if self.projector is None:
+            return
+        pattern = self.order[self.tick % len(self.order)]
+        due = self._deadline
+        ret = self.projector.show(pattern)
+        flip_ns = ret if isinstance(ret, int) and ret > 0 else self.clock()
+        late = self.pace and flip_ns - due > self.late_ns
+        self.flips.record(Shown(self.tick, pattern, flip_ns, late))
+
+    def step(self) -> LoopEvent:
+        """One tick: show, grab, check. Raises CameraTimeoutError if the camera stops sending."""
+        if not self._started:
+            self.start()
+        if self.pace:
+            now = self.clock()
+            if self._deadline > now:
+                time.sleep((self._deadline - now) / 1e9)
+            elif now - self._deadline > 4 * self.period_ns:
+                self._deadline = now  # we fell far behind (a stall): do not try to catch up
+        self._show()
+        self._check_trigger()
+        frame = self.camera.grab(self.timeout_s)
+        arrival = self.clock()
+        if self.checker._id_base is None and frame.trigger_count is None and self.projector is not None:
+            # First frame (or first after a camera restart): it answers the flip just made.
+            self.checker.anchor_frame_id(frame.frame_id, self.tick)
+        tagged, fs = self.checker.push(frame, arrival)
+        self.tick += 1
+        self._deadline += self.period_ns
+        return LoopEvent(tagged, frame, fs, arrival, "" if tagged is not None else self.checker.last_reason)
+
+    def _check_trigger(self) -> None:
+        """A trigger whose counter went back has reset: restart it, re-anchor the schedule.
+
+        Asked every `trigger_poll` ticks (a serial round trip costs time); the box driver also
+        raises TriggerResetError when it saw a BOOT line or a count going back.
+        """
+        if self.trigger is None or self.tick % self.trigger_poll:
+            return
+        from drivers.trigger.errors import TriggerResetError
+
+        try:
+            count = self.trigger.counter()
+        except TriggerResetError:
+            count = -1
+        if count < self._trigger_last:
+            self.checker.stats.resyncs += 1
+            self.checker.reset_pairing()
+            self.trigger.start(self.rate_hz)
+            # count 1 after the restart fires at the next tick
+            self.checker.anchor_trigger(self.tick + 1)
+            count = 0
+        self._trigger_last = count
+
+    def close(self) -> None:
+        """Stop and close every device, even if one of them fails."""
+        errors: list[BaseException] = []
+        for action in (
+            lambda: self.projector.show(None) if self.projector is not None else None,
+            lambda: self.trigger.stop() if self.trigger is not None else None,
+            self.camera.stop,
+            self.camera.close,
+            lambda: self.trigger.close() if self.trigger is not None else None,
+            lambda: self.projector.close() if self.projector is not None else None,
+        ):
+            try:
+                action()
+            except Exception as exc:
+                errors.append(exc)
+        self._started = False
+        if errors:
+            raise errors[0]

@@ -1,0 +1,366 @@
+"""The live pipeline: acquisition, decoding and sinks on separate threads, joined by bounded queues.
+
+    acquisition thread ──► decode queue (bounded) ──► decode worker(s) ──► results ──► sinks
+      CaptureLoop.step()     full: drop the OLDEST set,     FrameSet -> StripeMap    view: newest only,
+      recorder.put(frame)    counted as stale_sets          -> depth (triangulate)   older = stale_results
+
+Stale-data policy (ARCHITECTURE.md): the decoder works on the newest sets; a set that waited
+while a newer one arrived is dropped and counted. The recorder is fed by the acquisition thread
+directly and never drops silently (app/recorder.py). Every stage is timed (ms) and the latency of
+each depth map is measured from the host arrival of its newest frame to the end of triangulation.
+
+Threads, not processes: the decode kernels are numba `nogil` and the virtual camera renders with
+OpenCV, both release the GIL; `slscan bench --live` measures whether that keeps up.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from app.capture import CaptureLoop, CaptureStats, FrameSet
+from app.decode.stripemap import StripeMap
+from app.errors import InputError, SlscanError
+from app.patterns import PatternSet
+from app.recorder import Recorder
+from calibration.model import Calibration
+from drivers.base import Frame
+
+# ------------------------------------------------------------------------------------ decode stage
+
+
+class Processor:
+    """FrameSet -> (StripeMap, depth): the scheme's decoder and the triangulator, built once."""
+
+    def __init__(
+        self, patterns: PatternSet, calibration: Calibration, depth_range_mm: tuple[float, float] | None
+    ) -> None:
+        from app.triangulate import Triangulator
+
+        self.scheme = patterns.scheme
+        self.patterns = patterns
+        self.calibration = calibration
+        self.triangulator = Triangulator(calibration, depth_range_mm or (100.0, 5000.0))
+        self.decoder = _make_decoder(patterns, calibration, self.triangulator.column_range)
+
+    def decode(self, images: tuple[np.ndarray, ...], reversed_order: bool = False) -> StripeMap:
+        """images[p] saw pattern p."""
+        if self.scheme == "two-shot":
+            return self.decoder.decode(images[0], images[1])
+        if self.scheme == "one-shot":
+            return self.decoder.decode(images[0])
+        return self.decoder.decode(list(images))
+
+    def depth(self, stripes: StripeMap) -> np.ndarray:
+        return self.triangulator.depth(stripes.column)
+
+
+def _make_decoder(patterns: PatternSet, calibration: Calibration, column_range: tuple[np.ndarray, np.ndarray]):
+    """The decoder of a scheme (app/decode/, issue 4), given the geometry to pick stripe copies."""
+    proj_w = patterns.size[0]
+    mixing = calibration.color_mixing
+    try:
+        if patterns.scheme == "two-shot":
+            from app.decode.twoshot import TwoShotDecoder
+
+            return TwoShotDecoder(patterns.params, proj_w, color_mixing=mixing, column_range=column_range)
+        if patterns.scheme == "one-shot":
+            from app.decode.oneshot import OneShotDecoder
+
+            return OneShotDecoder(patterns.params, proj_w, color_mixing=mixing, column_range=column_range)
+        from app.decode.graycode import GrayCodeDecoder
+
+        return GrayCodeDecoder(patterns.params, patterns.size)
+    except ImportError as exc:
+        raise InputError(f"scheme {patterns.scheme!r}: its decoder is not available ({exc})") from None
+
+
+# ------------------------------------------------------------------------------------ results
+
+
+@dataclass
+class Result:
+    """One decoded frame set."""
+
+    index: int  # sequence number of the set (in acquisition order)
+    frameset: FrameSet
+    stripes: StripeMap
+    depth: np.ndarray  # float32 mm, 0 = none
+    decode_ms: float
+    triangulate_ms: float
+    done_ns: int
+
+    @property
+    def latency_ms(self) -> float:
+        return (self.done_ns - self.frameset.arrival_ns) / 1e6
+
+    @property
+    def image(self) -> np.ndarray:
+        """The newest camera frame of the set (for display and point colours)."""
+        return self.frameset.newest.image
+
+
+@dataclass
+class PipelineStats:
+    started_ns: int = 0
+    stopped_ns: int = 0
+    sets_in: int = 0  # sets the capture loop completed
+    stale_sets: int = 0  # dropped before decoding: a newer set arrived first
+    decoded: int = 0
+    failed: int = 0  # sets the decoder refused (error message kept)
+    stale_results: int = 0  # decoded but replaced before a sink showed them
+    recorded: int = 0
+    grab_ms: deque = field(default_factory=lambda: deque(maxlen=5000))  # show + grab + check per frame
+    decode_ms: deque = field(default_factory=lambda: deque(maxlen=5000))
+    triangulate_ms: deque = field(default_factory=lambda: deque(maxlen=5000))
+    latency_ms: deque = field(default_factory=lambda: deque(maxlen=5000))
+    frame_arrivals: deque = field(default_factory=lambda: deque(maxlen=120))  # ns, for a rolling rate
+    result_times: deque = field(default_factory=lambda: deque(maxlen=120))
+
+    def elapsed_s(self, now_ns: int | None = None) -> float:
+        end = self.stopped_ns or now_ns or time.monotonic_ns()
+        return max(1e-9, (end - self.started_ns) / 1e9) if self.started_ns else 0.0
+
+
+def _rate(times: deque) -> float:
+    t = list(times)
+    return (len(t) - 1) / ((t[-1] - t[0]) / 1e9) if len(t) > 2 and t[-1] > t[0] else 0.0
+
+
+def percentile(values, q: float) -> float:
+    v = np.asarray(list(values), np.float64)
+    return float(np.percentile(v, q)) if v.size else float("nan")
+
+
+# ------------------------------------------------------------------------------------ the pipeline
+
+
+class LivePipeline:
+    """Run a capture loop and decode its sets on worker threads; results go to `on_result`.
+
+    make_loop: builds the CaptureLoop *on the acquisition thread* (a pyglet projector window must
+    be used by the thread that opened it). max_frames: stop after that many camera frames.
+    on_result: called on a worker thread with every Result (keep it short: store, don't draw).
+    """
+
+    def __init__(
+        self,
+        make_loop: Callable[[], CaptureLoop],
+        processor: Processor,
+        *,
+        workers: int = 1,
+        queue_sets: int = 1,
+        max_frames: int | None = None,
+        recorder: Recorder | None = None,
+        on_result: Callable[[Result], None] | None = None,
+        on_frame: Callable[[Frame], None] | None = None,
+    ) -> None:
+        self.make_loop = make_loop
+        self.processor = processor
+        self.workers = max(1, workers)
+        self.max_frames = max_frames
+        self.recorder = recorder
+        self.on_result = on_result
+        self.on_frame = on_frame
+        self.stats = PipelineStats()
+        self.capture: CaptureStats = CaptureStats()
+        self.error: str | None = None  # why the session stopped early (device fault), for the operator
+        self.decode_error: str | None = None
+        self.latest: Result | None = None
+        self.latest_frame: Frame | None = None
+        self._sets: deque[tuple[int, FrameSet]] = deque()
+        self._queue_sets = max(1, queue_sets)
+        self._cv = threading.Condition()
+        self._stop = threading.Event()
+        self._acq_done = threading.Event()
+        self._ready = threading.Event()
+        self._lock = threading.Lock()
+        self._threads: list[threading.Thread] = []
+        self._set_index = 0
+        self._unshown = 0
+        self.loop: CaptureLoop | None = None
+
+    # -- control ---------------------------------------------------------------------------
+    def start(self) -> None:
+        self.stats.started_ns = time.monotonic_ns()
+        acq = threading.Thread(target=self._acquire, name="acquisition", daemon=True)
+        self._threads = [acq] + [
+            threading.Thread(target=self._decode_worker, name=f"decode-{i}", daemon=True) for i in range(self.workers)
+        ]
+        for t in self._threads:
+            t.start()
+        self._ready.wait(30.0)
+
+    def stop(self) -> None:
+        """Ask every stage to finish (returns at once; `join` waits)."""
+        self._stop.set()
+        with self._cv:
+            self._cv.notify_all()
+
+    def set_recorder(self, recorder: Recorder | None) -> Recorder | None:
+        """Start (a Recorder) or stop (None) recording; returns the previous recorder (to close)."""
+        with self._lock:
+            old, self.recorder = self.recorder, recorder
+        return old
+
+    def join(self, timeout_s: float | None = None) -> None:
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        for t in self._threads:
+            t.join(None if deadline is None else max(0.0, deadline - time.monotonic()))
+        if not self.stats.stopped_ns:
+            self.stats.stopped_ns = time.monotonic_ns()
+
+    def wait(self, poll_s: float = 0.2) -> None:
+        """Block until the session ends (frames done, stop(), or a device fault); Ctrl-C stops it cleanly."""
+        try:
+            while not self._acq_done.wait(poll_s):
+                pass
+        except KeyboardInterrupt:
+            self.stop()
+            self.join()
+            raise
+        self.join()
+
+    @property
+    def running(self) -> bool:
+        return not self._acq_done.is_set()
+
+    # -- acquisition -----------------------------------------------------------------------
+    def _acquire(self) -> None:
+        loop = None
+        try:
+            loop = self.make_loop()
+            self.loop = loop
+            self.capture = loop.stats
+            loop.start()
+            self._ready.set()
+            n = 0
+            while not self._stop.is_set() and (self.max_frames is None or n < self.max_frames):
+                t0 = time.perf_counter()
+                ev = loop.step()
+                self.stats.grab_ms.append((time.perf_counter() - t0) * 1e3)
+                self.stats.frame_arrivals.append(ev.arrival_ns)
+                n += 1
+                self.latest_frame = ev.raw
+                if self.on_frame is not None:
+                    self.on_frame(ev.raw)
+                if ev.frame is not None:
+                    with self._lock:
+                        rec = self.recorder
+                    if rec is not None and rec.put(ev.frame):
+                        self.stats.recorded += 1
+                if ev.frameset is not None:
+                    self._push_set(ev.frameset)
+        except SlscanError as exc:
+            self.error = str(exc)
+        except Exception as exc:  # a driver bug must still end the session cleanly, and say what
+            self.error = f"{type(exc).__name__}: {exc}"
+        finally:
+            if loop is not None:
+                try:
+                    loop.close()
+                except Exception as exc:
+                    self.error = self.error or f"closing the devices failed: {exc}"
+            self._ready.set()
+            self._acq_done.set()
+            with self._cv:
+                self._cv.notify_all()
+
+    def _push_set(self, fs: FrameSet) -> None:
+        with self._cv:
+            self.stats.sets_in += 1
+            if len(self._sets) >= self._queue_sets:
+                self._sets.popleft()
+                self.stats.stale_sets += 1
+            self._sets.append((self._set_index, fs))
+            self._set_index += 1
+            self._cv.notify()
+
+    # -- decoding --------------------------------------------------------------------------
+    def _decode_worker(self) -> None:
+        while True:
+            with self._cv:
+                while not self._sets and not self._acq_done.is_set() and not self._stop.is_set():
+                    self._cv.wait(0.5)
+                if not self._sets:
+                    return
+                if self._stop.is_set() and not self._acq_done.is_set():
+                    self._sets.clear()
+                    return
+                index, fs = self._sets.popleft()
+            try:
+                t0 = time.perf_counter()
+                stripes = self.processor.decode(tuple(f.image for f in fs.frames), fs.reversed_order)
+                t1 = time.perf_counter()
+                depth = self.processor.depth(stripes)
+                t2 = time.perf_counter()
+            except (SlscanError, ValueError) as exc:
+                self.stats.failed += 1
+                self.decode_error = str(exc)
+                continue
+            res = Result(index, fs, stripes, depth, (t1 - t0) * 1e3, (t2 - t1) * 1e3, time.monotonic_ns())
+            st = self.stats
+            with self._lock:
+                st.decoded += 1
+                st.decode_ms.append(res.decode_ms)
+                st.triangulate_ms.append(res.triangulate_ms)
+                st.latency_ms.append(res.latency_ms)
+                st.result_times.append(res.done_ns)
+                if self.latest is None or res.index > self.latest.index:
+                    if self._unshown:
+                        st.stale_results += 1
+                    self.latest = res
+                    self._unshown = 1
+                else:
+                    st.stale_results += 1  # a slower worker finished an older set: never shown
+            if self.on_result is not None:
+                self.on_result(res)
+
+    def take_latest(self) -> Result | None:
+        """The newest result not yet taken by a sink (the view calls this once per redraw)."""
+        with self._lock:
+            if not self._unshown:
+                return None
+            self._unshown = 0
+            return self.latest
+
+    # -- figures ---------------------------------------------------------------------------
+    def figures(self) -> dict:
+        """The numbers the status line and the headless run print."""
+        st, cap = self.stats, self.capture
+        elapsed = st.elapsed_s()
+        running = self.running
+        return {
+            "frames": cap.frames,
+            "frames_per_s": _rate(st.frame_arrivals) if running else cap.frames / elapsed if elapsed else 0.0,
+            "depth_maps": st.decoded,
+            "depth_per_s": _rate(st.result_times) if running else st.decoded / elapsed if elapsed else 0.0,
+            "latency_ms_p50": percentile(st.latency_ms, 50),
+            "latency_ms_p95": percentile(st.latency_ms, 95),
+            "decode_ms_p50": percentile(st.decode_ms, 50),
+            "triangulate_ms_p50": percentile(st.triangulate_ms, 50),
+            "grab_ms_p50": percentile(st.grab_ms, 50),
+            "dropped": cap.dropped,
+            "mispaired": cap.refused,
+            "stale_sets": st.stale_sets,
+            "stale_results": st.stale_results,
+            "recorded": st.recorded,
+            "capture": cap.as_dict(),
+            "elapsed_s": elapsed,
+        }
+
+
+def status_line(fig: dict, recording: str = "") -> str:
+    """One line for the view and the terminal."""
+    lat = fig["latency_ms_p95"]
+    lat_s = "-" if lat != lat else f"{lat:.0f} ms"
+    return (
+        f"{fig['frames_per_s']:5.1f} frames/s  {fig['depth_per_s']:5.1f} depth/s  latency p95 {lat_s}  "
+        f"dropped {fig['dropped']}  mispaired {fig['mispaired']}  stale {fig['stale_sets'] + fig['stale_results']}"
+        + (f"  {recording}" if recording else "")
+    )
