@@ -39,6 +39,7 @@ from drivers.camera.errors import (
     UnsupportedFeatureError,
 )
 from drivers.camera.gentl import HUB, producer_paths
+from drivers.camera.spec import as_bool
 
 FETCH_SLICE_S = 0.05  # grab() waits in slices so stop()/close() from another thread ends it promptly
 EDGES = {"rising": "RisingEdge", "falling": "FallingEdge", "any": "AnyEdge", "both": "AnyEdge"}
@@ -127,9 +128,9 @@ class GenICamCamera:
         trigger: str | None = None,
         trigger_edge: str = "rising",
         trigger_selector: str = "FrameStart",
-        buffers: int = 8,
+        buffers: int | str = 8,
         policy: str = "newest",
-        use_env: bool = True,
+        use_env: bool | str = True,
         name: str | None = None,
     ) -> None:
         if roi is not None:
@@ -143,7 +144,7 @@ class GenICamCamera:
         if str(trigger_edge).lower() not in EDGES and trigger_edge not in EDGES.values():
             raise InputError(f"genicam camera option trigger_edge={trigger_edge!r} must be rising, falling or any")
         self.cti = cti
-        self.use_env = bool(use_env)
+        self.use_env = as_bool("use_env", use_env)
         self.selection = {
             "serial": _opt("serial", serial, str),
             "model": _opt("model", model, str),
@@ -163,7 +164,7 @@ class GenICamCamera:
         self.trigger = _opt("trigger", trigger, str)
         self.trigger_edge = EDGES.get(str(trigger_edge).lower(), str(trigger_edge))
         self.trigger_selector = str(trigger_selector)
-        self.buffers = max(1, int(buffers))
+        self.buffers = max(1, _opt("buffers", buffers, int))
         self.policy = policy
         self.name = name or "genicam"
         self.stats = GrabStats()
