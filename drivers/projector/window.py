@@ -42,6 +42,7 @@ from drivers.projector.screens import display_name, find_screen, import_pyglet
 from drivers.projector.timing import FlipStats, flip_stats
 
 QUIT_KEYS = ("ESCAPE", "Q")
+SETTLE_S = 1.0  # how long a window manager may take to place the fullscreen window
 
 
 class ProjectorSetupError(DeviceError):
@@ -134,13 +135,17 @@ class PygletProjector:
         self._window = win
         win.set_mouse_visible(False)
         win.push_handlers(on_key_press=self._on_key_press, on_close=self._on_close)
-        for _ in range(3):  # let the window manager place and size the fullscreen window
+        # A window manager may place and resize a fullscreen window a little after it is mapped:
+        # give it up to SETTLE_S before judging where the window is.
+        deadline = time.monotonic() + SETTLE_S
+        while True:
             win.dispatch_events()
             self._draw(None)
             win.flip()
-        win.dispatch_events()
-        fb = tuple(win.get_framebuffer_size())
-        loc = tuple(win.get_location())
+            fb, loc = tuple(win.get_framebuffer_size()), tuple(win.get_location())
+            if (fb == self.size and loc == (scr.x, scr.y)) or time.monotonic() > deadline:
+                break
+            time.sleep(0.02)
         problem = None
         if fb != self.size:
             problem = (
@@ -271,7 +276,7 @@ class PygletProjector:
         self.current = index
         return t
 
-    def show(self, index: int | None) -> int:  # type: ignore[override]
+    def show(self, index: int | None) -> int:
         """Projector protocol: pattern `index` (None = black) from the next refresh on; returns the flip time."""
         return self.present(index)
 

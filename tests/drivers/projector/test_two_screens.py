@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from app.patterns import make_patterns
-from drivers.projector import ProjectorSetupError, PygletProjector, list_screens
+from drivers.projector import ProjectorSetupError, PygletProjector, list_screens, window
 
 pytestmark = pytest.mark.xserver
 
@@ -49,6 +49,7 @@ def test_window_that_lands_on_the_wrong_screen_is_refused(two_screen_xserver, mo
     from pyglet.window.xlib import XlibWindow
 
     monkeypatch.setattr(XlibWindow, "get_location", lambda self: (0, 0))
+    monkeypatch.setattr(window, "SETTLE_S", 0.1)  # no window manager will fix it: do not wait 1 s
     with pytest.raises(ProjectorSetupError, match=r"opened at \+0\+0, not on the screen at \+1024\+0.*refusing"):
         PygletProjector(1, PROJ, display=two_screen_xserver)
 
@@ -58,5 +59,6 @@ def test_hidpi_framebuffer_mismatch_is_refused(two_screen_xserver, monkeypatch):
     from pyglet.window.xlib import XlibWindow
 
     monkeypatch.setattr(XlibWindow, "get_framebuffer_size", lambda self: (2 * self._width, 2 * self._height))
+    monkeypatch.setattr(window, "SETTLE_S", 0.1)
     with pytest.raises(ProjectorSetupError, match=r"framebuffer is 1600x1200, not 800x600 .*HiDPI"):
         PygletProjector(1, PROJ, display=two_screen_xserver)
