@@ -55,7 +55,7 @@ class GrabStats:
     timeouts: int = 0  # grab() calls that timed out
 
 
-def _info(info: Any, key: str) -> str:
+def info_field(info: Any, key: str) -> str:
     try:
         value = getattr(info, key)
     except Exception:  # GenTL raises for information a producer does not provide
@@ -64,7 +64,7 @@ def _info(info: Any, key: str) -> str:
 
 
 def describe_info(info: Any) -> str:
-    model, serial, dev_id = _info(info, "model"), _info(info, "serial_number"), _info(info, "id_")
+    model, serial, dev_id = info_field(info, "model"), info_field(info, "serial_number"), info_field(info, "id_")
     return f"GenICam camera {model or '?'} serial={serial or '?'} ({dev_id or 'no id'})"
 
 
@@ -77,7 +77,7 @@ def select_device(
 ) -> Any:
     """Pick one device: filters by serial/model/id, then `index` among the matches."""
     wanted = {"serial_number": serial, "model": model, "id_": device_id}
-    matches = [i for i in infos if all(v is None or _info(i, k) == str(v) for k, v in wanted.items())]
+    matches = [i for i in infos if all(v is None or info_field(i, k) == str(v) for k, v in wanted.items())]
     sel = ", ".join(f"{k}={v}" for k, v in (("serial", serial), ("model", model), ("device_id", device_id)) if v)
     sel = sel or "any"
     listing = "; ".join(describe_info(i) for i in infos) or "none"
