@@ -196,3 +196,26 @@ def test_open_by_name_then_close_is_idempotent(display, screen_grabber):
     p.close()
     with pytest.raises(DeviceError, match="is closed"):
         p.show(None)
+
+
+def test_window_owned_by_a_worker_thread(display, screen_grabber):
+    """The capture loop may run the projector on its own thread: open, load, show and close there."""
+    ps = make_patterns("two-shot", SIZE)
+    result: dict = {}
+
+    def worker():
+        try:
+            with PygletProjector(0, SIZE) as p:
+                p.load(ps.images)
+                p.show(1)
+                result["pixels"] = screen_grabber.grab()
+                result["stats"] = p.run([0, 1], 60, frames=10)
+        except Exception as exc:  # reported to the test thread below
+            result["error"] = exc
+
+    t = threading.Thread(target=worker)
+    t.start()
+    t.join(30)
+    assert "error" not in result, result.get("error")
+    np.testing.assert_array_equal(result["pixels"], ps.images[1])
+    assert result["stats"].flips == 10
