@@ -34,6 +34,7 @@ class TriggerBoxEmulator:
         self.tx = bytearray()  # every byte the box sent
         self.silent = False
         self.garbage = False
+        self.phase_fault = False
         self._lock = threading.RLock()
         self._stop = threading.Event()
         self._decoder = proto.LineDecoder(require_checksum=False)
@@ -53,7 +54,6 @@ class TriggerBoxEmulator:
         self.pulse_us = 100
         self.count = 0
         self._next_fire = 0.0
-        self._t0 = 0.0
 
     def _open_pty(self) -> None:
         self._master, self._slave = os.openpty()
@@ -107,6 +107,11 @@ class TriggerBoxEmulator:
             self._open_pty()
         self._wake()
 
+    def swap_phases(self, on: bool = True) -> None:
+        """A box whose cycle marking is off by one (the fault that inverts a two-shot pair)."""
+        with self._lock:
+            self.phase_fault = on
+
     def vsync(self) -> None:
         """One projector vsync edge (only fires when running with the EXT source)."""
         with self._lock:
@@ -158,7 +163,7 @@ class TriggerBoxEmulator:
 
     def _fire(self) -> None:
         self.count += 1
-        self._send("T", self.count, (self.count - 1) % self.cycle)
+        self._send("T", self.count, (self.count - 1 + self.phase_fault) % self.cycle)
 
     def _run(self) -> None:
         while not self._stop.is_set():
@@ -217,7 +222,7 @@ class TriggerBoxEmulator:
             "RESET": self._cmd_reset,
         }.get(name)
         if handler is None:
-            self._send("ERR", item.name[:12], "UNKNOWN")
+            self._send("ERR", name[:12], "UNKNOWN")
             return
         nargs = 1 if name in ("RATE", "CYC", "SRC", "PW") else 0
         if len(args) != nargs:
@@ -235,6 +240,8 @@ class TriggerBoxEmulator:
         if not proto.RATE_MIN_MHZ <= mhz <= proto.RATE_MAX_MHZ:
             return self._send("ERR", name, "RANGE")
         self.rate_mhz = mhz
+        if self.running and self.active == "INT":  # like the firmware: the period restarts now
+            self._next_fire = time.monotonic() + self._period_s()
         self._send("OK", name, proto.format_rate(mhz))
 
     def _int_arg(self, name: str, arg: str, lo: int, hi: int) -> int | None:

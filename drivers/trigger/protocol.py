@@ -42,7 +42,7 @@ def format_rate(mhz: int) -> str:
 def parse_rate(text: str) -> int | None:
     """'59.94' -> 59940 (milli-hertz); None if not a plain decimal with at most 3 decimals."""
     whole, dot, frac = text.partition(".")
-    if not whole.isdigit() or not whole.isascii() or (dot and (not frac.isdigit() or len(frac) > 3)):
+    if not whole.isdigit() or not whole.isascii() or len(whole) > 6 or (dot and (not frac.isdigit() or len(frac) > 3)):
         return None
     return int(whole) * 1000 + int((frac + "000")[:3])
 

@@ -109,12 +109,12 @@ class SerialTriggerBox:
             self._ensure_link()
             with self._cond:
                 self._fault = None
-            self._command("STOP")
-            self._command("CYC", self.cycle)
-            self._command("SRC", self.source)
-            self._command("PW", self.pulse_us)
-            self._command("RATE", proto.format_rate(mhz))
-            self.active_source = self._command("START")[0]
+            self.command("STOP")
+            self.command("CYC", self.cycle)
+            self.command("SRC", self.source)
+            self.command("PW", self.pulse_us)
+            self.command("RATE", proto.format_rate(mhz))
+            self.active_source = self.command("START")[0]
             self.rate_hz = mhz / 1000.0
             self._running = True
 
@@ -122,7 +122,7 @@ class SerialTriggerBox:
         with self._cmd_lock:
             self._ensure_link()
             self._running = False
-            self._command("STOP")
+            self.command("STOP")
             self.active_source = "-"
 
     def counter(self) -> int:
@@ -130,7 +130,7 @@ class SerialTriggerBox:
         with self._cmd_lock:
             self._raise_fault()
             self._ensure_link()
-            count = self._int(self._command("CNT"), 0, "CNT")
+            count = self._int(self.command("CNT"), 0, "CNT")
             if self._running and count < self._last_count:
                 self._flag_reset(f"counter went back from {self._last_count} to {count}")
                 self._raise_fault()
@@ -140,7 +140,7 @@ class SerialTriggerBox:
         with self._cmd_lock:
             if self._ser is not None and self._running and self._disconnected is None:
                 with contextlib.suppress(Exception):
-                    self._command("STOP", retries=0)
+                    self.command("STOP", retries=0)
             self._running = False
             self._close_port()
 
@@ -179,7 +179,7 @@ class SerialTriggerBox:
     def status(self) -> dict[str, object]:
         with self._cmd_lock:
             self._ensure_link()
-            f = self._command("STAT")
+            f = self.command("STAT")
             if len(f) != 8:
                 raise TriggerProtocolError(f"trigger box {self.port}: malformed STAT reply {f!r}")
             st = {
@@ -202,7 +202,7 @@ class SerialTriggerBox:
     def reset_box(self) -> None:
         """Reboot the box (watchdog); waits for it to answer again."""
         with self._cmd_lock:
-            self._command("RESET")
+            self.command("RESET")
             self._running = False
             self._handshake(self.boot_wait_s)
             with self._cond:
@@ -293,7 +293,7 @@ class SerialTriggerBox:
             if left <= 0:
                 break
             try:
-                reply = self._command("VER", retries=0, timeout_s=min(self.timeout_s, left))
+                reply = self.command("VER", retries=0, timeout_s=min(self.timeout_s, left))
             except TriggerTimeoutError:
                 continue
             except TriggerProtocolError:
@@ -318,10 +318,13 @@ class SerialTriggerBox:
         self.boot_id = self._int(reply, 2, "VER")
 
     # -- commands ---------------------------------------------------------------------------
-    def _command(
+    def command(
         self, name: str, *args: object, retries: int | None = None, timeout_s: float | None = None
     ) -> tuple[str, ...]:
-        """Send one command, return the reply's fields after `OK,NAME`. Every command is idempotent: retry."""
+        """Send one protocol command, return the reply's fields after `OK,NAME` (ERR -> TriggerCommandError).
+
+        Every command is idempotent, so a timed-out or corrupted one is simply sent again.
+        """
         line = proto.encode(name, *args)
         timeout = self.timeout_s if timeout_s is None else timeout_s
         garbage0 = self.garbage_bytes

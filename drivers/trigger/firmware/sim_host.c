@@ -6,7 +6,7 @@
  * Prints "PTY /dev/pts/N" on stdout once the UART is wired (open it with pyserial).
  * --vsync HZ  drives the INT0 pin (PD2) with a rising edge every 1/HZ s of simulated time,
  *             like a projector's vsync.
- * --edges F   logs every TRIG rising edge (PB0): "<cycle> <mark>", mark = MARK (PB1) level.
+ * --edges F   logs every TRIG (PB0) edge: "<cycle> <trig> <mark>", the levels after the edge.
  *             The file ends with "END <cycle> <frequency>" when the host exits.
  * SIGUSR1     resets the MCU (a power glitch: EEPROM survives, RAM and IO do not).
  * SIGTERM/INT exits cleanly (the edge log is flushed).
@@ -36,12 +36,13 @@ static void on_signal(int sig) {
     else want_quit = 1;
 }
 
-/* Whole-port hook: PB0 and PB1 change in one write, so read MARK in the same update as TRIG. */
+/* Whole-port hook: PB0 and PB1 change in one write, so MARK is read in the same update as TRIG. */
 static void on_portb(avr_irq_t *irq, uint32_t value, void *param) {
     (void)irq;
     (void)param;
-    if ((value & 1) && !(last_portb & 1) && edges)
-        fprintf(edges, "%llu %u\n", (unsigned long long)avr->cycle, (unsigned)((value >> 1) & 1));
+    if (((value ^ last_portb) & 1) && edges)
+        fprintf(edges, "%llu %u %u\n", (unsigned long long)avr->cycle, (unsigned)(value & 1),
+                (unsigned)((value >> 1) & 1));
     last_portb = (uint8_t)value;
 }
 
