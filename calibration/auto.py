@@ -80,7 +80,7 @@ def auto_capture(
     if response:
         rig.set_board_pose(*fronto_pose(board, rig))
         levels = [(ch, lv, rig.render(level_image(rig.projector_size, ch, lv))) for ch, lv in level_plan()]
-        writer.write_response(levels)
+        writer.write_response(levels, camera_gamma=rig.options.camera_gamma)
         if progress:
             progress(f"response: {len(levels)} flat colour levels")
     return Path(out)

@@ -4,7 +4,7 @@
     DIR/pose_000/ ...       one frame dump (format v1, scheme graycode, frames tagged with their
                             pattern index) per pose; the first frame tagged with each index is used
     DIR/response/           optional: flat colour levels for the colour response
-                            (levels.yaml: {format: slscan-levels, version: 1,
+                            (levels.yaml: {format: slscan-levels, version: 1, camera_gamma (optional),
                              frames: [{file, channel: R|G|B, level: 0..255}, ...]} + PNGs)
 
 The reader checks the layout and reads pose by pose, so a long session never holds every frame.
@@ -106,6 +106,15 @@ class Capture:
     def read_response(self) -> list[tuple[str, int, np.ndarray]]:
         return read_levels(self.folder / RESPONSE_DIR)
 
+    def response_camera_gamma(self) -> float | None:
+        """The camera gamma recorded with the levels (None: unknown, take the camera as linear)."""
+        try:
+            doc = yaml.safe_load((self.folder / RESPONSE_DIR / LEVELS_FILE).read_text())
+        except (OSError, yaml.YAMLError, UnicodeDecodeError):
+            return None
+        g = doc.get("camera_gamma") if isinstance(doc, dict) else None
+        return float(g) if isinstance(g, int | float) and not isinstance(g, bool) and g > 0 else None
+
 
 def open_capture(folder: str | os.PathLike) -> Capture:
     """Check that `folder` is a calibration capture; the error says what is missing."""
@@ -166,18 +175,21 @@ class CaptureWriter:
         shutil.rmtree(self.folder / name, ignore_errors=True)
         return name
 
-    def write_response(self, levels: list[tuple[str, int, np.ndarray]]) -> None:
-        write_levels(self.folder / RESPONSE_DIR, levels)
+    def write_response(self, levels: list[tuple[str, int, np.ndarray]], camera_gamma: float | None = None) -> None:
+        write_levels(self.folder / RESPONSE_DIR, levels, camera_gamma)
 
 
-def write_levels(folder: Path, levels: list[tuple[str, int, np.ndarray]]) -> None:
+def write_levels(folder: Path, levels: list[tuple[str, int, np.ndarray]], camera_gamma: float | None = None) -> None:
     folder.mkdir(parents=True, exist_ok=False)
     entries = []
     for i, (channel, level, img) in enumerate(levels):
         name = f"{i:03d}_{channel}_{level:03d}.png"
         write_rgb(folder / name, img)
         entries.append({"file": name, "channel": channel, "level": int(level)})
-    doc = {"format": LEVELS_FORMAT, "version": 1, "frames": entries}
+    doc: dict = {"format": LEVELS_FORMAT, "version": 1}
+    if camera_gamma is not None:
+        doc["camera_gamma"] = float(camera_gamma)  # known camera response (the virtual rig's)
+    doc["frames"] = entries
     (folder / LEVELS_FILE).write_text(yaml.safe_dump(doc, sort_keys=False, default_flow_style=None))
 
 

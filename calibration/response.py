@@ -4,7 +4,7 @@ From frames of flat projector levels (one primary at a time, plus black) on a wh
 - each channel's projector->camera response curve: the camera's own channel mean (black removed)
   against the projector level, and a fitted power law  v = a * (level / 255) ** gamma;
 - the 3x3 `color_mixing` matrix: column j is the linear camera R, G, B produced by projector
-  primary j at full level (black removed), scaled so the column's largest entry is 1;
+  primary j at full level (black removed), scaled to a unit diagonal;
 - warnings when a channel is nearly saturated or too dark at full level.
 Pure: frames in, numbers out. Camera values are taken as linear (machine-vision cameras run with
 gamma off); `camera_gamma` linearises a camera that does not.
@@ -44,7 +44,7 @@ class Response:
     levels: np.ndarray  # (L,) projector levels, 0 first
     curves: np.ndarray  # (3, L): camera channel c under projector primary c, black removed, camera units
     gamma: np.ndarray  # (3,) fitted exponent per channel
-    color_mixing: np.ndarray  # (3, 3) columns = projector primaries, each column max = 1
+    color_mixing: np.ndarray  # (3, 3) columns = projector primaries, unit diagonal
     full_scale: float  # camera top code value (255 or 65535)
     warnings: list[str] = field(default_factory=list)
 
@@ -76,58 +76,59 @@ def measure_response(
     blacks = [img for _, lv, img in frames if lv == 0]
     if not blacks:
         raise ValueError("no black (level 0) frame")
-    black_img = np.mean([b.astype(np.float64) for b in blacks], axis=0)
+
+    def lin(img: np.ndarray) -> np.ndarray:
+        return _linearise(img.astype(np.float64), camera_gamma, full)
+
+    black_img = np.mean([lin(b) for b in blacks], axis=0)
     if mask is None:
-        tops = {}
+        tops: dict[str, tuple[int, np.ndarray]] = {}
         for ch, lv, img in frames:
             if lv > tops.get(ch, (0, None))[0]:
                 tops[ch] = (lv, img)
-        white = np.sum([img.astype(np.float64) for _, img in tops.values()], axis=0)
+        white = np.sum([lin(img) for _, img in tops.values()], axis=0)
         mask = surface_mask(white, black_img)
     if mask.sum() < 50:
         raise ValueError("too few lit surface pixels to measure the colour response")
-
-    def mean_rgb(img: np.ndarray) -> np.ndarray:
-        return img[mask].astype(np.float64).mean(axis=0)
-
-    black = mean_rgb(black_img)
+    black = black_img[mask].mean(axis=0)
     levels = sorted({lv for _, lv, _ in frames})
     curves = np.zeros((3, len(levels)))
     top_rgb = np.zeros((3, 3))
     warnings: list[str] = []
     for c, ch in enumerate(CHANNELS):
         best = -1
+        sat = top_mean = 0.0
         for ch2, lv, img in frames:
             if ch2 != ch or lv == 0:
                 continue
-            v = mean_rgb(img) - black
+            v = lin(img)[mask].mean(axis=0) - black
             curves[c, levels.index(lv)] = v[c]
             if lv > best:
                 best, top_rgb[:, c] = lv, v
-                sat = float((img[mask][:, c] >= full - 1).mean())
-                top_mean = float(img[mask][:, c].astype(np.float64).mean())
+                raw = img[mask][:, c]
+                sat = float((raw >= full - 1).mean())
+                top_mean = float(raw.astype(np.float64).mean())
         if best < 0:
             raise ValueError(f"no frames of projector channel {ch}")
+        raw_black = float(np.mean([b[mask][:, c].astype(np.float64).mean() for b in blacks]))
         if sat > SATURATED_FRACTION or top_mean > NEAR_SATURATION * full:
             warnings.append(
                 f"channel {ch} is nearly saturated at level {best} (mean {top_mean:.0f} of {full:.0f}, "
                 f"{100 * sat:.1f} % clipped): lower the exposure or the projector brightness"
             )
-        elif top_mean - black[c] < TOO_DARK * full:
+        elif top_mean - raw_black < TOO_DARK * full:
             warnings.append(
-                f"channel {ch} is too dark at level {best} (only {top_mean - black[c]:.0f} above black of "
+                f"channel {ch} is too dark at level {best} (only {top_mean - raw_black:.0f} above black of "
                 f"{full:.0f}): raise the exposure or the projector brightness"
             )
-    lin = _linearise(np.clip(top_rgb + black[:, None], 0, None), camera_gamma, full) - _linearise(
-        black[:, None], camera_gamma, full
-    )
-    lin = np.clip(lin, 0, None)
-    mixing = lin / np.maximum(lin.max(axis=0, keepdims=True), 1e-12)
+    top = np.clip(top_rgb, 0, None)
+    mixing = top / np.maximum(np.diag(top)[None, :], 1e-12)  # unit diagonal, as the virtual rig writes it
     gamma = np.array([_fit_gamma(np.array(levels, float), curves[c]) for c in range(3)])
     return Response(np.array(levels, float), curves, gamma, mixing, full, warnings)
 
 
 def _linearise(v: np.ndarray, camera_gamma: float, full: float) -> np.ndarray:
+    """Camera code values -> linear light in code units (the camera wrote v = full * lin ** (1/gamma))."""
     if camera_gamma == 1.0:
         return v
     return full * (np.clip(v, 0, None) / full) ** camera_gamma

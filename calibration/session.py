@@ -68,7 +68,7 @@ class CaptureResult:
 def solve_capture(
     capture: Capture,
     decode: Decoder = decode_projector_maps,
-    camera_gamma: float = 1.0,
+    camera_gamma: float | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> CaptureResult:
     """Solve a capture folder pose by pose (frames are not all held at once)."""
@@ -100,6 +100,8 @@ def solve_capture(
     solution.views.sort(key=lambda v: v.name)
     response = None
     if capture.has_response():
+        if camera_gamma is None:
+            camera_gamma = capture.response_camera_gamma() or 1.0
         try:
             response = measure_response(capture.read_response(), camera_gamma=camera_gamma)
         except ValueError as exc:
