@@ -317,6 +317,7 @@ class CaptureLoop:
         self.late_ns = late_ns if late_ns is not None else self.period_ns // 2
         self.clock = clock
         self.trigger_poll = max(1, trigger_poll)
+        self._free_running = False  # set at start(): the trigger fires from its own timer
         self.flips = FlipLog()
         # No projector (replay): the frames carry their recorded tags.
         self.checker = FrameChecker(scheme, n_patterns, self.flips, device_tags=projector is None)
@@ -334,6 +335,10 @@ class CaptureLoop:
         if self.trigger is not None:
             self.trigger.start(self.rate_hz)
             self._trigger_last = 0
+            t = self.trigger
+            self._free_running = self.pace and (
+                bool(getattr(t, "free_running", False)) or getattr(t, "active_source", "") == "INT"
+            )
         self.checker.anchor_trigger(0)
         self._deadline = self.clock()
         self._started = True
@@ -345,7 +350,9 @@ class CaptureLoop:
         due = self._deadline
         ret = self.projector.show(pattern)
         flip_ns = ret if isinstance(ret, int) and ret > 0 else self.clock()
-        late = self.pace and flip_ns - due > self.late_ns
+        # Only a trigger firing from its own clock can catch a late flip; a camera triggered by the
+        # flip (vsync) or grabbed after it always sees the new pattern.
+        late = self._free_running and flip_ns - due > self.late_ns
         self.flips.record(Shown(self.tick, pattern, flip_ns, late))
 
     def step(self) -> LoopEvent:

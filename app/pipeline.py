@@ -183,6 +183,7 @@ class LivePipeline:
         self._threads: list[threading.Thread] = []
         self._set_index = 0
         self._unshown = 0
+        self._has_view = False
         self.loop: CaptureLoop | None = None
 
     # -- control ---------------------------------------------------------------------------
@@ -311,12 +312,13 @@ class LivePipeline:
                 st.triangulate_ms.append(res.triangulate_ms)
                 st.latency_ms.append(res.latency_ms)
                 st.result_times.append(res.done_ns)
+                # Stale results exist only for a sink that shows them (the view); headless keeps the newest.
                 if self.latest is None or res.index > self.latest.index:
-                    if self._unshown:
+                    if self._unshown and self._has_view:
                         st.stale_results += 1
                     self.latest = res
                     self._unshown = 1
-                else:
+                elif self._has_view:
                     st.stale_results += 1  # a slower worker finished an older set: never shown
             if self.on_result is not None:
                 self.on_result(res)
@@ -324,6 +326,7 @@ class LivePipeline:
     def take_latest(self) -> Result | None:
         """The newest result not yet taken by a sink (the view calls this once per redraw)."""
         with self._lock:
+            self._has_view = True
             if not self._unshown:
                 return None
             self._unshown = 0

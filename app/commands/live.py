@@ -1,0 +1,370 @@
+"""`slscan live`: the live scanning session (operator view, or --headless).
+
+Also the session builder the `dump`, `replay` and `bench --live` commands share: a config file
+-> devices from the driver registries, the pattern set, the calibration and the depth range.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import importlib
+import os
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from app.capture import CaptureLoop
+from app.config import Config, load_config
+from app.errors import DeviceError, InputError
+from app.patterns import SCHEMES, PatternSet, make_patterns
+from app.pipeline import LivePipeline, Processor, Result, status_line
+from calibration.model import Calibration
+from drivers.base import CAMERAS, PROJECTORS, TRIGGERS
+
+HELP = "run the live scanning session (virtual rig by default; --config for real hardware)"
+
+EPILOG = """\
+examples:
+  slscan live                                   # the virtual rig (config/sim.yaml), operator window
+  slscan live --headless --frames 600           # same loop, no window: prints the figures, saves the last scan
+  slscan live --config rig.yaml                 # real camera, projector and trigger box
+  slscan live --headless --frames 300 --record rec/   # and record every tagged frame as a dump
+
+keys in the window: space = snapshot (depth TIFF, PLY, PNGs), r = start/stop recording,
+m = switch scheme, q / Esc = quit.
+Without a display, `slscan live` says so; use --headless.
+"""
+
+DRIVER_MODULES = {
+    "camera": ("drivers.camera.spec",),
+    "projector": ("drivers.projector.window",),
+    "trigger": ("drivers.trigger.serial_box",),
+}
+SIM_MODULE = "drivers.sim.devices"
+
+
+# ------------------------------------------------------------------------------------ session
+
+
+@dataclass
+class Session:
+    """Everything a live run needs, built from one config file."""
+
+    config: Config
+    scheme: str
+    patterns: PatternSet
+    calibration: Calibration
+    depth_range_mm: tuple[float, float] | None
+    rate_hz: float
+    make_devices: Callable[[], tuple[Any, Any, Any]]  # (camera, projector, trigger or None), on the calling thread
+    scheme_options: dict = field(default_factory=dict)
+    sim: Any = None  # the virtual rig, when the session runs on it (ground truth for tests and benches)
+
+    def make_loop(self, **kw: Any) -> CaptureLoop:
+        camera, projector, trigger = self.make_devices()
+        if projector is not None:
+            projector.load(self.patterns.images)
+        return CaptureLoop(camera, projector, trigger, self.scheme, len(self.patterns), rate_hz=self.rate_hz, **kw)
+
+    def processor(self) -> Processor:
+        return Processor(self.patterns, self.calibration, self.depth_range_mm)
+
+    def with_scheme(self, scheme: str) -> Session:
+        """The same rig with another pattern scheme (the view's `m` key)."""
+        return build_session(self.config, scheme=scheme)
+
+
+def _scheme_options(cfg: Config, scheme: str) -> dict:
+    sec = cfg.section("scheme", required=False)
+    opts: dict = {}
+    if scheme in ("one-shot", "two-shot"):
+        if "k" in sec:
+            opts["k"] = cfg.get("scheme.k", types=int)
+        if "stripe_width" in sec:
+            opts["stripe_width"] = cfg.get("scheme.stripe_width", types=int)
+    if scheme == "two-shot" and "channels" in sec:
+        opts["channels"] = cfg.get("scheme.channels", types=str)
+    if scheme == "one-shot" and "colors" in sec:
+        opts["colors"] = cfg.get("scheme.colors", types=str)
+    return opts
+
+
+def _driver(cfg: Config, kind: str, registry: dict, required: bool = True) -> tuple[str | None, dict]:
+    """The `rig.KIND` section: its driver name, checked against the registry, and its options."""
+    sec = cfg.section("rig").get(kind)
+    if sec is None or sec == "none":
+        if required:
+            raise InputError(f"{cfg.path}: missing key 'rig.{kind}'")
+        return None, {}
+    if not isinstance(sec, dict):
+        raise InputError(f"{cfg.path}: key 'rig.{kind}' must be a mapping with a 'driver'")
+    name = cfg.get(f"rig.{kind}.driver", types=str)
+    if name == "none" and not required:
+        return None, {}
+    if name != "sim":
+        for mod in DRIVER_MODULES[kind]:
+            with contextlib.suppress(ImportError):
+                importlib.import_module(mod)
+        if kind == "camera":
+            from drivers.camera.spec import load_camera_drivers
+
+            load_camera_drivers()
+        if name not in registry:
+            known = ", ".join(sorted({*registry, "sim"}))
+            raise InputError(f"{cfg.path}: key 'rig.{kind}.driver': unknown driver {name!r} (known: {known})")
+    return name, {k: v for k, v in sec.items() if k != "driver"}
+
+
+def _make(cfg: Config, kind: str, registry: dict, name: str, options: dict) -> Any:
+    try:
+        return registry[name](**options)
+    except TypeError as exc:
+        raise InputError(f"{cfg.path}: key 'rig.{kind}': bad options for driver {name!r} ({exc})") from None
+
+
+def build_session(
+    config: Config | str | os.PathLike | None = None,
+    *,
+    scheme: str | None = None,
+    sim_overrides: dict | None = None,
+) -> Session:
+    """A Session from a config (default config/sim.yaml). Errors name the file and the key."""
+    cfg = config if isinstance(config, Config) else load_config(config)
+    scheme = scheme or cfg.get("scheme.name", "two-shot", types=str)
+    if scheme not in SCHEMES:
+        raise InputError(f"{cfg.path}: key 'scheme.name': unknown scheme {scheme!r} (choose {', '.join(SCHEMES)})")
+    rate = float(cfg.get("capture.rate_hz", 60, types=(int, float)))  # type: ignore[arg-type]
+    if not 1 <= rate <= 250:
+        raise InputError(f"{cfg.path}: key 'capture.rate_hz' must be 1..250, found {rate}")
+    depth_range = cfg.get("depth_range_mm", None)
+    if depth_range is not None and not (
+        isinstance(depth_range, list) and len(depth_range) == 2 and 0 < depth_range[0] < depth_range[1]
+    ):
+        raise InputError(f"{cfg.path}: key 'depth_range_mm' must be [near, far] with 0 < near < far")
+
+    cam_name, cam_opts = _driver(cfg, "camera", CAMERAS)
+    proj_name, proj_opts = _driver(cfg, "projector", PROJECTORS)
+    trig_name, trig_opts = _driver(cfg, "trigger", TRIGGERS, required=False)
+    opts = _scheme_options(cfg, scheme)
+
+    if "sim" in (cam_name, proj_name, trig_name):
+        if not cam_name == proj_name == "sim" or trig_name not in ("sim", None):
+            raise InputError(f"{cfg.path}: key 'rig': the virtual rig's camera, projector and trigger go together")
+        return _sim_session(cfg, scheme, opts, rate, depth_range, sim_overrides or {})
+
+    # Real hardware: the projector's size fixes the pattern size; the calibration comes from the config.
+    cal_path = cfg.get("calibration", types=str)
+    cal_file = (cfg.path.parent / str(cal_path)).resolve()
+    if not cal_file.is_file():
+        raise InputError(f"{cfg.path}: key 'calibration': file {cal_file} not found (run `slscan calibrate`)")
+    calibration = Calibration.load(cal_file)
+    patterns = make_patterns(scheme, calibration.projector_size, **opts)
+
+    def make_devices() -> tuple[Any, Any, Any]:
+        cam = _make(cfg, "camera", CAMERAS, cam_name, cam_opts)  # type: ignore[arg-type]
+        try:
+            proj = _make(cfg, "projector", PROJECTORS, proj_name, proj_opts)  # type: ignore[arg-type]
+            if tuple(proj.size) != tuple(calibration.projector_size):
+                raise DeviceError(
+                    f"projector {proj.name} is {proj.size[0]}x{proj.size[1]} but the calibration "
+                    f"{cal_file} says {calibration.projector_size[0]}x{calibration.projector_size[1]}"
+                )
+            trig = _make(cfg, "trigger", TRIGGERS, trig_name, trig_opts) if trig_name else None
+        except BaseException:
+            cam.close()
+            raise
+        return cam, proj, trig
+
+    rng = tuple(depth_range) if depth_range else None
+    return Session(cfg, scheme, patterns, calibration, rng, rate, make_devices, opts)  # type: ignore[arg-type]
+
+
+def _sim_session(
+    cfg: Config, scheme: str, opts: dict, rate: float, depth_range: list | None, overrides: dict
+) -> Session:
+    """The virtual rig (drivers/sim, issue 3): its true calibration goes with every result and dump."""
+    try:
+        sim_devices = importlib.import_module(SIM_MODULE)
+    except ImportError as exc:
+        raise DeviceError(f"the virtual rig is not available ({exc})") from None
+    rig = sim_devices.make_sim_rig(cfg, **overrides) if overrides else sim_devices.make_sim_rig(cfg)
+    cam, proj, trig = rig.camera, rig.projector, rig.trigger
+    calibration = rig.calibration
+    patterns = make_patterns(scheme, tuple(proj.size), **opts)
+    rng = tuple(depth_range) if depth_range else tuple(rig.depth_range_mm)
+    used = {"done": False}
+
+    def make_devices() -> tuple[Any, Any, Any]:
+        if used["done"]:  # a second loop (scheme switch) reuses the rig: reopen it
+            fresh = sim_devices.make_sim_rig(cfg, **overrides) if overrides else sim_devices.make_sim_rig(cfg)
+            return fresh.camera, fresh.projector, fresh.trigger
+        used["done"] = True
+        return cam, proj, trig
+
+    return Session(cfg, scheme, patterns, calibration, rng, rate, make_devices, opts, sim=rig)  # type: ignore[arg-type]
+
+
+# ------------------------------------------------------------------------------------ command
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "live", help=HELP, description=HELP, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    p.add_argument("--config", metavar="FILE", help="rig configuration (default: config/sim.yaml, the virtual rig)")
+    p.add_argument("--scheme", choices=SCHEMES, help="pattern scheme (default: the config's scheme.name)")
+    p.add_argument("--headless", action="store_true", help="no window: run the loop, print figures, save the last scan")
+    p.add_argument("--frames", type=int, metavar="N", help="stop after N camera frames (headless default 300)")
+    p.add_argument("--out", metavar="DIR", help="headless: folder for the last scan (default live-YYYYmmdd-HHMMSS)")
+    p.add_argument("--record", metavar="DIR", help="record every tagged frame as a dump in DIR (must not exist)")
+    p.add_argument("--png-level", type=int, default=0, metavar="L", help="PNG level for recordings (0 fastest; 1..9)")
+    p.add_argument("--workers", type=int, default=1, help="decode threads (default 1)")
+    p.add_argument("--timeout", type=float, default=2.0, metavar="S", help="camera timeout in seconds (default 2)")
+    p.set_defaults(func=run)
+
+
+def open_recorder(session: Session, folder: str | os.PathLike, png_level: int = 0):
+    from app.dump import DumpWriter
+    from app.recorder import Recorder
+
+    writer = DumpWriter(
+        folder,
+        session.patterns,
+        session.calibration,
+        depth_range_mm=session.depth_range_mm,
+        extra={"rig": str(session.config.path)},
+        png_level=png_level,
+    )
+    return Recorder(writer)
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.frames is not None and args.frames < 1:
+        raise InputError(f"--frames {args.frames}: must be at least 1")
+    if not args.headless:
+        if not os.environ.get("DISPLAY"):
+            raise DeviceError(
+                "no display for the operator window (DISPLAY is not set): "
+                "run `slscan live --headless --frames 600` instead"
+            )
+        from app.view import run_view
+
+        session = build_session(args.config, scheme=args.scheme)
+        return run_view(session, args)
+    session = build_session(args.config, scheme=args.scheme)
+    return run_headless(session, args)
+
+
+def run_headless(session: Session, args: argparse.Namespace, label: str = "live") -> int:
+    frames = args.frames or 300
+    out = Path(args.out) if args.out else Path(time.strftime("live-%Y%m%d-%H%M%S"))
+    recorder = open_recorder(session, args.record, args.png_level) if getattr(args, "record", None) else None
+    processor = session.processor()
+    pipe = LivePipeline(
+        lambda: session.make_loop(timeout_s=args.timeout),
+        processor,
+        workers=args.workers,
+        max_frames=frames,
+        recorder=recorder,
+    )
+    print(f"slscan {label}: {session.scheme} on {describe(session)}, {frames} frames", file=sys.stderr)
+    interrupted = False
+    pipe.start()
+    try:
+        last = time.monotonic()
+        while pipe.running:
+            time.sleep(0.1)
+            if time.monotonic() - last >= 1.0 and sys.stderr.isatty():
+                last = time.monotonic()
+                print("\r" + status_line(pipe.figures()), end="", file=sys.stderr, flush=True)
+        pipe.join()
+    except KeyboardInterrupt:
+        interrupted = True
+        pipe.stop()
+        pipe.join()
+    finally:
+        if recorder is not None:
+            recorder.close()
+    if sys.stderr.isatty():
+        print(file=sys.stderr)
+    fig = pipe.figures()
+    print_figures(fig)
+    if recorder is not None:
+        print(recorder.summary())
+    if pipe.latest is not None:
+        save_result(pipe.latest, processor, out)
+        print(f"last scan (frames {', '.join(map(str, pipe.latest.frameset.frame_ids))}) written to {out}")
+    else:
+        print("no depth map was produced: nothing written")
+    if pipe.error:
+        print(f"slscan {label}: stopped: {pipe.error}", file=sys.stderr)
+        return 2 if pipe.latest is None else 1
+    if interrupted:
+        print(f"slscan {label}: interrupted; stopped cleanly", file=sys.stderr)
+        return 130
+    return 0
+
+
+def describe(session: Session) -> str:
+    return "the virtual rig" if session.sim is not None else str(session.config.path)
+
+
+def print_figures(fig: dict) -> None:
+    cap = fig["capture"]
+    print(
+        f"frames in: {fig['frames']} ({fig['frames_per_s']:.1f}/s)  depth maps out: {fig['depth_maps']} "
+        f"({fig['depth_per_s']:.1f}/s)  latency p50 {fig['latency_ms_p50']:.1f} ms, p95 {fig['latency_ms_p95']:.1f} ms"
+    )
+    print(
+        f"per stage (median): grab+check {fig['grab_ms_p50']:.1f} ms, decode {fig['decode_ms_p50']:.1f} ms, "
+        f"triangulate {fig['triangulate_ms_p50']:.1f} ms"
+    )
+    print(
+        f"dropped {cap['dropped']}  mispaired (refused) {cap['refused']}: duplicates {cap['duplicates']}, "
+        f"out of order {cap['out_of_order']}, mistagged {cap['mistagged']}, untracked {cap['untracked']}; "
+        f"resyncs {cap['resyncs']}; stale sets {fig['stale_sets']}, stale results {fig['stale_results']}"
+    )
+
+
+def save_result(result: Result, processor: Processor, out: str | os.PathLike) -> Path:
+    """Depth TIFF, PLY, stripe pseudo-colour, depth preview and camera PNGs of one result (all or nothing)."""
+    from app.fsutil import atomic_directory
+
+    out = Path(out)
+    with atomic_directory(out) as tmp:
+        write_result_files(result, processor, tmp)
+    return out
+
+
+def write_result_files(result: Result, processor: Processor, folder: Path, stem: str = "") -> None:
+    from app.imageio import write_float_tiff, write_rgb
+    from app.view import colourise_depth, stripe_colours
+
+    write_float_tiff(folder / f"{stem}depth.tiff", result.depth)
+    write_rgb(folder / f"{stem}stripes.png", stripe_colours(result.stripes))
+    write_rgb(folder / f"{stem}depth_preview.png", colourise_depth(result.depth, processor.triangulator.depth_range_mm))
+    for p, f in enumerate(result.frameset.frames):
+        write_rgb(folder / f"{stem}camera_p{p}.png", f.image)
+    write_ply(folder / f"{stem}cloud.ply", processor.triangulator.points(result.depth, result.image))
+
+
+def write_ply(path: Path, cloud: Any) -> None:
+    """Binary little-endian PLY: x y z float32, red green blue uchar (the architecture file's cloud)."""
+    import numpy as np
+
+    n = len(cloud.xyz)
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"element vertex {n}\nproperty float x\nproperty float y\nproperty float z\n"
+        "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
+    )
+    rec = np.empty(n, dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("r", "u1"), ("g", "u1"), ("b", "u1")])
+    rec["x"], rec["y"], rec["z"] = cloud.xyz[:, 0], cloud.xyz[:, 1], cloud.xyz[:, 2]
+    rec["r"], rec["g"], rec["b"] = cloud.rgb[:, 0], cloud.rgb[:, 1], cloud.rgb[:, 2]
+    with open(path, "wb") as fh:
+        fh.write(header.encode("ascii"))
+        fh.write(rec.tobytes())
