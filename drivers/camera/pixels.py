@@ -174,15 +174,13 @@ def to_rgb(raw: bytes | np.ndarray, fmt: str, width: int, height: int, padding_x
     s = samples(raw, fmt, width, height, padding_x)
     if lay.bits not in (8, 16):
         s = s << np.uint16(16 - lay.bits)
+    # OpenCV's colour conversions are several times faster than numpy fancy copies here.
     if lay.kind == "mono":
-        return np.repeat(s[:, :, None], 3, axis=2)
+        return cv2.cvtColor(np.ascontiguousarray(s), cv2.COLOR_GRAY2RGB)
     if lay.kind == "bayer":
         return cv2.cvtColor(np.ascontiguousarray(s), _DEMOSAIC[lay.bayer])
     px = s.reshape(height, width, lay.samples_per_pixel)
     if lay.kind == "rgb":
         return px.copy()
-    if lay.kind == "bgr":
-        return np.ascontiguousarray(px[:, :, ::-1])
-    if lay.kind == "rgba":
-        return np.ascontiguousarray(px[:, :, :3])
-    return np.ascontiguousarray(px[:, :, 2::-1])  # bgra
+    code = {"bgr": cv2.COLOR_BGR2RGB, "rgba": cv2.COLOR_RGBA2RGB, "bgra": cv2.COLOR_BGRA2RGB}[lay.kind]
+    return cv2.cvtColor(np.ascontiguousarray(px), code)
