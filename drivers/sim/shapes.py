@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from drivers.sim.textures import Texture, Uniform
@@ -232,8 +233,26 @@ class Relief(Shape):
             h = h + amp * np.exp(-0.5 * (((x - bx) / sx) ** 2 + ((y - by) / sy) ** 2)) * (r2 < 1)
         return h
 
+    def _grid(self) -> tuple[np.ndarray, float, float, float]:
+        """The height on a 0.25 mm grid (-1 outside the support), for a fast first march."""
+        if getattr(self, "_grid_cache", None) is None:
+            a, b = self.semi_axes
+            step = 0.25
+            xs = np.arange(-a - step, a + 2 * step, step)
+            ys = np.arange(-b - step, b + 2 * step, step)
+            x, y = np.meshgrid(xs, ys)
+            inside = (x / a) ** 2 + (y / b) ** 2 < 1.0
+            grid = np.where(inside, self.height(x, y), -1.0)
+            self._grid_cache = (np.ascontiguousarray(grid), float(xs[0]), float(ys[0]), step)
+        return self._grid_cache
+
     def _hmax(self) -> float:
-        return self.depth + sum(max(0.0, b[4]) for b in self.bumps)
+        """Highest point of the relief (sampled finely) plus a margin: bounds the march."""
+        if getattr(self, "_hmax_cache", None) is None:
+            a, b = self.semi_axes
+            x, y = np.meshgrid(np.linspace(-a, a, 301), np.linspace(-b, b, 301))
+            self._hmax_cache = float(self.height(x, y).max()) + 2.0
+        return self._hmax_cache
 
     def intersect(self, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         ol, dl = self.to_local(o, d)
@@ -242,7 +261,7 @@ class Relief(Shape):
         t_out = np.full(n, INF)
         # bracket the slab -hmax <= z <= 0 that contains the surface
         with np.errstate(divide="ignore", invalid="ignore"):
-            ta = (-self._hmax() - 1.0 - ol[:, 2]) / dl[:, 2]
+            ta = (-self._hmax() - ol[:, 2]) / dl[:, 2]
             tb = (0.0 - ol[:, 2]) / dl[:, 2]
         t0 = np.clip(np.fmin(ta, tb), EPS_T, None)
         t1 = np.fmax(ta, tb)
@@ -255,38 +274,23 @@ class Relief(Shape):
         ok &= ~((np.minimum(p0[:, 0], p1[:, 0]) > a) | (np.maximum(p0[:, 0], p1[:, 0]) < -a))
         ok &= ~((np.minimum(p0[:, 1], p1[:, 1]) > b) | (np.maximum(p0[:, 1], p1[:, 1]) < -b))
         idx = np.nonzero(ok)[0]
-        if idx.size == 0:
-            return t_out, np.zeros(n, np.int8)
-        o_i, d_i, t0_i, t1_i = ol[idx], dl[idx], t0[idx], t1[idx]
-
-        def f(t: np.ndarray, sel: slice | np.ndarray = slice(None)) -> np.ndarray:
-            p = o_i[sel] + t[:, None] * d_i[sel]
-            inside = (p[:, 0] / a) ** 2 + (p[:, 1] / b) ** 2 < 1.0
-            # above the surface (toward the camera) is f > 0; outside the support the surface is z = 0+
-            return np.where(inside, -p[:, 2] - self.height(p[:, 0], p[:, 1]), 1.0)
-
-        steps = 48
-        found = np.zeros(len(idx), bool)
-        lo = np.zeros(len(idx))
-        hi = np.zeros(len(idx))
-        prev_t = t0_i.copy()
-        prev_f = f(prev_t)
-        for s in range(1, steps + 1):
-            t = t0_i + (t1_i - t0_i) * (s / steps)
-            fv = f(t)
-            cross = ~found & (prev_f > 0) & (fv <= 0)
-            lo = np.where(cross, prev_t, lo)
-            hi = np.where(cross, t, hi)
-            found |= cross
-            prev_t, prev_f = t, fv
-        sel = np.nonzero(found)[0]
-        lo, hi = lo[sel], hi[sel]
-        for _ in range(40):  # bisection: 48 steps of < 4 mm, then to well below 1e-6 mm
-            mid = 0.5 * (lo + hi)
-            above = f(mid, sel) > 0
-            lo = np.where(above, mid, lo)
-            hi = np.where(above, hi, mid)
-        t_out[idx[sel]] = 0.5 * (lo + hi)
+        if idx.size:
+            bumps = np.asarray(self.bumps, np.float64).reshape(-1, 5)
+            grid, x0, y0, step = self._grid()
+            t_out[idx] = _relief_hits(
+                np.ascontiguousarray(ol[idx]),
+                np.ascontiguousarray(dl[idx]),
+                t0[idx],
+                t1[idx],
+                a,
+                b,
+                self.depth,
+                bumps,
+                grid,
+                x0,
+                y0,
+                step,
+            )
         return t_out, np.zeros(n, np.int8)
 
     def normal(self, X: np.ndarray, face: np.ndarray) -> np.ndarray:
@@ -299,3 +303,119 @@ class Relief(Shape):
         n = np.stack([-hx, -hy, -np.ones_like(hx)], axis=1)
         n /= np.linalg.norm(n, axis=1, keepdims=True)
         return self.normal_to_camera(n)
+
+
+@numba.njit(cache=True)
+def _relief_exact(x: float, y: float, a: float, b: float, depth: float, bumps: np.ndarray) -> tuple:
+    """Height and gradient (h, dh/dx, dh/dy); h = -1 outside the support."""
+    r2 = (x / a) ** 2 + (y / b) ** 2
+    if r2 >= 1.0:
+        return -1.0, 0.0, 0.0
+    root = np.sqrt(1.0 - r2)
+    h = depth * root
+    hx = -depth * x / (a * a * max(root, 1e-9))
+    hy = -depth * y / (b * b * max(root, 1e-9))
+    for k in range(bumps.shape[0]):
+        dx = (x - bumps[k, 0]) / bumps[k, 2]
+        dy = (y - bumps[k, 1]) / bumps[k, 3]
+        e = bumps[k, 4] * np.exp(-0.5 * (dx * dx + dy * dy))
+        h += e
+        hx -= e * dx / bumps[k, 2]
+        hy -= e * dy / bumps[k, 3]
+    return h, hx, hy
+
+
+@numba.njit(cache=True)
+def _grid_height(x: float, y: float, grid: np.ndarray, x0: float, y0: float, step: float) -> float:
+    """Bilinear height from the precomputed grid (-1 outside the support)."""
+    gx = (x - x0) / step
+    gy = (y - y0) / step
+    if gx < 0 or gy < 0 or gx >= grid.shape[1] - 1 or gy >= grid.shape[0] - 1:
+        return -1.0
+    ix = int(gx)
+    iy = int(gy)
+    fx = gx - ix
+    fy = gy - iy
+    h00 = grid[iy, ix]
+    h01 = grid[iy, ix + 1]
+    h10 = grid[iy + 1, ix]
+    h11 = grid[iy + 1, ix + 1]
+    if h00 < 0 or h01 < 0 or h10 < 0 or h11 < 0:
+        return -1.0
+    return (h00 * (1 - fx) + h01 * fx) * (1 - fy) + (h10 * (1 - fx) + h11 * fx) * fy
+
+
+@numba.njit(cache=True)
+def _relief_hits(
+    o: np.ndarray,
+    d: np.ndarray,
+    t0: np.ndarray,
+    t1: np.ndarray,
+    a: float,
+    b: float,
+    depth: float,
+    bumps: np.ndarray,
+    grid: np.ndarray,
+    x0: float,
+    y0: float,
+    step: float,
+) -> np.ndarray:
+    """First crossing of each ray with the relief surface z = -h(x, y).
+
+    March in 1 mm steps on the gridded height to bracket the first crossing, then Newton on the
+    exact analytic height (bisection fallback) to ~1e-7 mm.
+    """
+    n = o.shape[0]
+    out = np.full(n, np.inf)
+    for i in range(n):
+        length = t1[i] - t0[i]
+        steps = max(4, min(4000, int(length / 1.0) + 1))
+        prev_t = t0[i]
+        prev_f = 1.0
+        for s in range(steps + 1):
+            t = t0[i] + length * s / steps
+            x = o[i, 0] + t * d[i, 0]
+            y = o[i, 1] + t * d[i, 1]
+            h = _grid_height(x, y, grid, x0, y0, step)
+            fv = 1.0 if h < 0 else -(o[i, 2] + t * d[i, 2]) - h
+            if s > 0 and prev_f > 0 and fv <= 0:
+                lo, hi = prev_t, t
+                # Newton on the exact surface from the bracket's interpolated root
+                tn = hi - fv * (hi - lo) / (fv - prev_f)
+                ok = False
+                for _ in range(12):
+                    x = o[i, 0] + tn * d[i, 0]
+                    y = o[i, 1] + tn * d[i, 1]
+                    h, hx, hy = _relief_exact(x, y, a, b, depth, bumps)
+                    if h < 0:
+                        break
+                    f = -(o[i, 2] + tn * d[i, 2]) - h
+                    df = -d[i, 2] - hx * d[i, 0] - hy * d[i, 1]
+                    if abs(f) < 1e-9:
+                        ok = True
+                        break
+                    if df == 0:
+                        break
+                    tn = tn - f / df
+                    if tn < lo - 1.0 or tn > hi + 1.0:
+                        break
+                if ok:
+                    out[i] = tn
+                    break
+                # fallback: bisection on the exact surface within the bracket
+                for _ in range(60):
+                    mid = 0.5 * (lo + hi)
+                    x = o[i, 0] + mid * d[i, 0]
+                    y = o[i, 1] + mid * d[i, 1]
+                    h, hx, hy = _relief_exact(x, y, a, b, depth, bumps)
+                    fm = 1.0 if h < 0 else -(o[i, 2] + mid * d[i, 2]) - h
+                    if fm > 0:
+                        lo = mid
+                    else:
+                        hi = mid
+                    if hi - lo < 1e-7:
+                        break
+                out[i] = 0.5 * (lo + hi)
+                break
+            prev_t, prev_f = t, fv
+    return out
