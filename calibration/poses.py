@@ -62,7 +62,7 @@ def visible(board: Board, cal: Calibration, rvec: np.ndarray, tvec: np.ndarray, 
 
 
 def plan_poses(
-    board: Board, cal: Calibration, n: int, seed: int = 0, fill: float = 0.55, max_tilt_deg: float = 40.0
+    board: Board, cal: Calibration, n: int, seed: int = 0, fill: float = 0.8, max_tilt_deg: float = 40.0
 ) -> list[tuple[np.ndarray, np.ndarray]]:
     """n poses (rvec, tvec) board->camera, tilted in turn about both axes, spread over the field.
 

@@ -1,0 +1,49 @@
+"""Shared fixtures: virtual rigs with a calibration board, and one automatic capture per session."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from calibration.auto import auto_capture, make_rig, rig_board
+from calibration.poses import plan_poses
+
+_RIGS: dict[str, object] = {}
+
+
+def rig_for(scene: str):
+    """One rig per board scene per session (construction costs seconds)."""
+    if scene not in _RIGS:
+        _RIGS[scene] = make_rig(scene)
+    return _RIGS[scene]
+
+
+@pytest.fixture(scope="session")
+def board_rig_views():
+    """scene -> (board, [(white camera image, true corner pixels), ...]) for two tilted poses."""
+    cache: dict[str, tuple] = {}
+
+    def get(scene: str):
+        if scene not in cache:
+            rig = rig_for(scene)
+            board = rig_board(rig)
+            white = rig.prepare(np.full((rig.projector_size[1], rig.projector_size[0], 3), 255, np.uint8))
+            views = []
+            for rvec, tvec in plan_poses(board, rig.calibration, 2, seed=3):
+                rig.set_board_pose(rvec, tvec)
+                views.append((rig.render(white), rig.board_corners_image()))
+            cache[scene] = (board, views)
+        return cache[scene]
+
+    return get
+
+
+AUTO_POSES = 12
+
+
+@pytest.fixture(scope="session")
+def auto_capture_dir(tmp_path_factory):
+    """A 12-pose capture of the checkerboard scene (effects on), written by `auto_capture`."""
+    folder = tmp_path_factory.mktemp("cal") / "auto.capture"
+    auto_capture(folder, AUTO_POSES, rig=rig_for("checkerboard"), seed=0)
+    return folder
