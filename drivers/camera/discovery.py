@@ -42,13 +42,16 @@ def list_cameras(cti_paths: Sequence[str | os.PathLike] = (), use_env: bool = Tr
             out.append({"driver": "genicam", "producer": "", "error": str(exc)})
     if files:
         try:
-            infos = HUB.device_infos(files)
+            with HUB.lock:
+                infos = HUB.device_infos(files)
+                entries = [_genicam_entry(i) for i in infos]
         except Exception as exc:  # GenTL errors from a misbehaving producer must not hide the others
             out.append({"driver": "genicam", "producer": ", ".join(files), "error": str(exc).splitlines()[0]})
-            infos = []
-        out += [_genicam_entry(i) for i in infos]
+            entries = []
+        out += entries
         seen = {e["producer"] for e in out}
         loaded = set(HUB.loaded_producers())
+        HUB.release_if_idle()
         for f in files:
             if f not in seen and loaded and f not in loaded:
                 out.append({"driver": "genicam", "producer": f, "error": f"{f}: the producer failed to open"})

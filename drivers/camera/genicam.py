@@ -186,20 +186,20 @@ class GenICamCamera:
         from genicam.gentl import GenericException, ResourceInUseException
 
         files = producer_paths(self.cti, self.use_env)
-        try:
-            infos = HUB.device_infos(files)
-        except GenericException as exc:
-            raise NoDeviceError(f"GenICam producers {files}: device enumeration failed ({_msg(exc)})") from None
-        info = select_device(infos, **self.selection)
-        self.device = describe_info(info)
-        try:
-            ia = HUB.create(info)
-        except ResourceInUseException:
-            raise DeviceBusyError(
-                f"{self.device} is in use (opened by this or another program): close it there first"
-            ) from None
-        except GenericException as exc:
-            raise DeviceBusyError(f"{self.device}: cannot open ({_msg(exc)}); check access rights") from None
+        with HUB.lock:  # enumeration and open as one step: nobody re-enumerates in between
+            try:
+                infos = HUB.device_infos(files)
+                info = select_device(infos, **self.selection)
+                self.device = describe_info(info)
+                ia = HUB.create(info)
+            except ResourceInUseException:
+                raise DeviceBusyError(
+                    f"{self.device} is in use (opened by this or another program): close it there first"
+                ) from None
+            except GenericException as exc:
+                raise DeviceBusyError(f"{self.device}: cannot open ({_msg(exc)}); check access rights") from None
+            finally:
+                HUB.release_if_idle()  # after a failure nothing is open: let the producers go
         self._ia = ia
         try:
             self._configure()

@@ -152,6 +152,24 @@ class _Hub:
                 ias = getattr(self._h, "_ias", None)
                 if isinstance(ias, list) and ia in ias:
                     ias.remove(ia)  # harvesters keeps every acquirer it made; forget the destroyed one
+                self.release_if_idle()
+
+    def release_if_idle(self) -> None:
+        """Close the producers when no camera is open (the next open re-enumerates in ~10 ms).
+
+        Holding them would make any other Harvester in this process see 0 devices.
+        """
+        with self.lock:
+            if self._open == 0 and self._h is not None and self._files:
+                self._drop()
+
+    def _drop(self) -> None:
+        # Harvester.reset() runs a weakref finalizer, which works only once per object: a reset
+        # Harvester is thrown away and the next use makes a fresh one.
+        h, self._h = self._h, None
+        self._files = []
+        if h is not None:
+            h.reset()
 
     @property
     def open_count(self) -> int:
@@ -160,9 +178,7 @@ class _Hub:
     def reset(self) -> None:
         """Release everything (process exit, or tests that simulate a vanished producer)."""
         with self.lock:
-            if self._h is not None:
-                self._h.reset()
-            self._files = []
+            self._drop()
             self._open = 0
 
 

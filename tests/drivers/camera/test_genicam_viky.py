@@ -242,3 +242,19 @@ def test_vanished_device_raises_promptly_and_can_be_reopened():
         assert cam.grab(timeout_s=2).frame_id == 1
     finally:
         cam.close()
+
+
+def test_producers_are_released_when_the_last_camera_closes():
+    """harvesters: a second Harvester sees 0 devices while another holds the producer (FIELD-NOTES)."""
+    from harvesters.core import Harvester
+
+    with viky(serial="0") as cam:
+        cam.start()
+        cam.grab(timeout_s=2)
+    with Harvester() as other:  # code elsewhere in the process that makes its own
+        other.add_file(viky_path())
+        other.update()
+        assert len(other.device_info_list) == 3
+    with viky(serial="1") as cam:  # and the driver still works afterwards
+        cam.start()
+        assert cam.grab(timeout_s=2).frame_id == 1
