@@ -131,9 +131,7 @@ class SerialTriggerBox:
             self._raise_fault()
             self._ensure_link()
             count = self._int(self.command("CNT"), 0, "CNT")
-            if self._running and count < self._last_count:
-                self._flag_reset(f"counter went back from {self._last_count} to {count}")
-                self._raise_fault()
+            self._raise_fault()  # the reader compared it with the events before it on the line
             return count
 
     def close(self) -> None:
@@ -424,10 +422,15 @@ class SerialTriggerBox:
             cause = fields[4] if len(fields) > 4 else "?"
             self._flag_reset(f"it rebooted (cause {cause})")
         elif kind in ("OK", "ERR"):
-            if kind == "OK" and len(fields) > 1 and fields[1] in ("START", "STOP"):
+            cmd = fields[1] if len(fields) > 1 else ""
+            if kind == "OK" and cmd in ("START", "STOP"):
                 with self._cond:  # lines before this reply belong to the previous run
                     self._events.clear()
                     self._last_count = 0
+            elif kind == "OK" and cmd == "CNT" and len(fields) > 2 and fields[2].isdigit():
+                # compared here, in line order: events read later must not count against it
+                if self._running and int(fields[2]) < self._last_count:
+                    self._flag_reset(f"its count went back from {self._last_count} to {fields[2]}")
             self._replies.put(fields)
         else:
             self.garbage_bytes += 1
