@@ -20,7 +20,7 @@ CHANNELS = "RGB"
 DEFAULT_LEVELS = (0, 32, 64, 96, 128, 160, 192, 224, 255)
 SATURATED_FRACTION = 0.01  # of the surface pixels at the top code value
 NEAR_SATURATION = 0.94  # of full scale: the mean this close to the top leaves no headroom
-TOO_DARK = 0.08  # of full scale: a primary whose full level gives less is too dark to decode
+TOO_DARK = 0.06  # of full scale, linear: a primary whose full level gives less is too dark to decode
 
 
 def level_image(size: tuple[int, int], channel: str, level: int) -> np.ndarray:
@@ -110,16 +110,15 @@ def measure_response(
                 top_mean = float(raw.astype(np.float64).mean())
         if best < 0:
             raise ValueError(f"no frames of projector channel {ch}")
-        raw_black = float(np.mean([b[mask][:, c].astype(np.float64).mean() for b in blacks]))
         if sat > SATURATED_FRACTION or top_mean > NEAR_SATURATION * full:
             warnings.append(
                 f"channel {ch} is nearly saturated at level {best} (mean {top_mean:.0f} of {full:.0f}, "
                 f"{100 * sat:.1f} % clipped): lower the exposure or the projector brightness"
             )
-        elif top_mean - raw_black < TOO_DARK * full:
+        elif top_rgb[c, c] < TOO_DARK * full:
             warnings.append(
-                f"channel {ch} is too dark at level {best} (only {top_mean - raw_black:.0f} above black of "
-                f"{full:.0f}): raise the exposure or the projector brightness"
+                f"channel {ch} is too dark at level {best} (linear signal {100 * top_rgb[c, c] / full:.1f} % of "
+                f"full scale above black): raise the exposure or the projector brightness"
             )
     top = np.clip(top_rgb, 0, None)
     mixing = top / np.maximum(np.diag(top)[None, :], 1e-12)  # unit diagonal, as the virtual rig writes it
