@@ -196,10 +196,13 @@ class V4L2Camera:
         self._streaming = False
         cap, self._cap = self._cap, None
         pool, self._pool = self._pool, None
-        if pool is not None:
-            pool.shutdown(wait=False, cancel_futures=True)
         self._pending = None
-        if cap is not None:
+        if pool is not None:
+            # VideoCapture is not thread-safe: release on the reader thread, after any read under way.
+            if cap is not None:
+                pool.submit(cap.release)
+            pool.shutdown(wait=False)
+        elif cap is not None:
             cap.release()
 
     def __enter__(self) -> V4L2Camera:

@@ -104,7 +104,7 @@ def test_frame_rate_setting_changes_the_rate():
         for _ in range(3):
             cam.grab(timeout_s=2)
         slow = (time.monotonic() - t) / 3
-    assert 0.12 < slow < 0.4  # 5 fps = 0.2 s a frame
+    assert 0.12 < slow < 0.5  # 5 fps = 0.2 s a frame
 
 
 def test_every_buffer_is_queued_back():

@@ -99,6 +99,7 @@ class FakeCapture:
                 self.concurrent -= 1
 
     def release(self):
+        self.released_while_reading = self.concurrent > 0
         self.released = True
 
 
@@ -183,14 +184,28 @@ def test_frames_are_rgb_with_ids_and_device_timestamps(devices):
 def test_grab_timeout_is_bounded_and_reads_never_overlap(devices):
     with V4L2Camera(0) as cam:
         fake = FakeCapture.instances[-1]
-        fake.read_delay = 0.4
+        fake.read_delay = 1.0
         cam.start()
         t = time.monotonic()
         with pytest.raises(CameraTimeoutError, match=r"video0: no frame within 0.1 s"):
             cam.grab(timeout_s=0.1)
-        assert time.monotonic() - t < 0.3
+        assert time.monotonic() - t < 0.6
         f = cam.grab(timeout_s=2)  # collects the read that was already under way
         assert f.frame_id == 1 and fake.reads == 1 and fake.max_concurrent == 1
+
+
+def test_close_during_a_pending_read_releases_after_it(devices):
+    cam = V4L2Camera(0)
+    fake = FakeCapture.instances[-1]
+    fake.read_delay = 0.3
+    cam.start()
+    with pytest.raises(CameraTimeoutError):
+        cam.grab(timeout_s=0.05)
+    cam.close()  # returns at once; OpenCV's release waits for the read on the reader thread
+    deadline = time.monotonic() + 2
+    while not fake.released and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert fake.released and not fake.released_while_reading and fake.reads == 1
 
 
 def test_unplugged_camera_stops_with_a_message_and_reopens(devices):
