@@ -11,13 +11,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from app.errors import InputError
 from calibration.board import Board, detect
 from calibration.capture import Capture, PoseFrames
 from calibration.correspondence import decode_projector_maps
 from calibration.local_homography import corners_to_projector
 from calibration.model import Calibration
 from calibration.response import Response, measure_response
-from calibration.solve import PoseObservation, Solution, ViewReport, solve
+from calibration.solve import MIN_POSES, RECOMMENDED_POSES, PoseObservation, Solution, ViewReport, solve
 
 MIN_DECODED_FRACTION = 0.5  # of the detected corners that must get projector coordinates
 
@@ -72,6 +73,11 @@ def solve_capture(
     progress: Callable[[str], None] | None = None,
 ) -> CaptureResult:
     """Solve a capture folder pose by pose (frames are not all held at once)."""
+    if len(capture.poses) < MIN_POSES:
+        raise InputError(
+            f"{capture.folder}: too few poses: {len(capture.poses)} (minimum {MIN_POSES}, "
+            f"recommended {RECOMMENDED_POSES}); capture more"
+        )
     results: list[PoseResult] = []
     camera_size = projector_size = None
     for name in capture.poses:
@@ -80,8 +86,6 @@ def solve_capture(
         if camera_size is None:
             camera_size, projector_size = (w, h), pose.projector_size
         elif (w, h) != camera_size or pose.projector_size != projector_size:
-            from app.errors import InputError
-
             raise InputError(
                 f"{capture.folder / name}: frames {w}x{h} / projector {pose.projector_size} differ from "
                 f"the first pose ({camera_size}, {projector_size})"

@@ -1,11 +1,11 @@
-"""Shared fixtures: virtual rigs with a calibration board, and one automatic capture per session."""
+"""Shared fixtures: virtual rigs with a calibration board."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from calibration.auto import auto_capture, make_rig, rig_board
+from calibration.auto import make_rig, rig_board
 from calibration.poses import plan_poses
 
 _RIGS: dict[str, object] = {}
@@ -36,14 +36,3 @@ def board_rig_views():
         return cache[scene]
 
     return get
-
-
-AUTO_POSES = 12
-
-
-@pytest.fixture(scope="session")
-def auto_capture_dir(tmp_path_factory):
-    """A 12-pose capture of the checkerboard scene (effects on), written by `auto_capture`."""
-    folder = tmp_path_factory.mktemp("cal") / "auto.capture"
-    auto_capture(folder, AUTO_POSES, rig=rig_for("checkerboard"), seed=0)
-    return folder
