@@ -1,0 +1,123 @@
+"""`slscan bench --calibration`: the calibration wizard's solve against the virtual rig's truth.
+
+Poses the simulated board N times (effects on: noise, blur, crosstalk, gamma), solves as
+`slscan calibrate --auto` does, and compares with the rig's true calibration; then scans the flat
+`plane` scene with Gray code and triangulates it with the recovered calibration (and, for
+reference, with the true one) against the ground-truth depth. Targets from issue 7.
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+FLAG = "--calibration"
+KEY = "calibration"
+HELP = "calibration accuracy on the virtual rig: RMS, focal, principal point, baseline, rotation, plane depth"
+DEFAULT = False  # a minute or two: run it when asked
+
+TARGETS = {
+    "camera_rms_px": 0.2,
+    "projector_rms_px": 0.3,
+    "camera_focal_error_pct": 0.5,
+    "projector_focal_error_pct": 0.5,
+    "camera_principal_error_px": 2.0,
+    "projector_principal_error_px": 2.0,
+    "baseline_error_mm": 0.5,
+    "rotation_error_deg": 0.1,
+    "plane_depth_error_pct": 0.2,
+    "color_mixing_error": 0.03,
+    "projector_gamma_error_pct": 3.0,
+}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--calibration-poses", type=int, default=15, metavar="N", help="board poses (default 15)")
+    parser.add_argument("--calibration-scene", default="checkerboard", help="board scene (checkerboard, charuco)")
+
+
+def plane_depth(cal, truth, decode) -> dict[str, float]:
+    """Gray-code scan of the flat `plane` scene, triangulated with `cal` and with the truth."""
+    from app.patterns import graycode_patterns
+    from calibration.auto import make_rig
+    from calibration.validate import plane_scan
+
+    rig = make_rig("plane")
+    pats = graycode_patterns(rig.projector_size)
+    frames = [rig.render(img) for img in pats.images]
+    meta = {"size": list(pats.size), **pats.params}
+    column, _ = decode(frames, meta)
+    gt = rig.ground_truth
+    got = plane_scan(column, cal, rig.depth_range_mm, gt.depth)
+    ref = plane_scan(column, truth, rig.depth_range_mm, gt.depth)
+    return {
+        "plane_depth_error_pct": got.depth_error_pct,
+        "plane_depth_abs_error_pct": got.depth_abs_error_pct,
+        "plane_rms_mm": got.plane_rms_mm,
+        "plane_depth_error_pct_true_cal": ref.depth_error_pct,
+    }
+
+
+def run(args: argparse.Namespace) -> list[dict]:
+    from calibration.auto import auto_capture, make_rig
+    from calibration.capture import open_capture
+    from calibration.correspondence import decode_projector_maps
+    from calibration.session import solve_capture
+    from calibration.validate import compare
+
+    n = int(getattr(args, "calibration_poses", 15))
+    scene = getattr(args, "calibration_scene", "checkerboard")
+    rig = make_rig(scene)
+    truth = rig.calibration
+    with tempfile.TemporaryDirectory(prefix="slscan-bench-cal-") as tmp:
+        t0 = time.perf_counter()
+        folder = auto_capture(Path(tmp) / "capture", n, rig=rig)
+        t1 = time.perf_counter()
+        result = solve_capture(open_capture(folder))
+        t2 = time.perf_counter()
+    sol = result.solution
+    values: dict[str, float] = {"poses": n, "poses_used": len(sol.used), "capture_s": t1 - t0, "solve_s": t2 - t1}
+    if sol.calibration is not None:
+        cal = sol.calibration
+        values["camera_rms_px"] = cal.rms["camera_rms"]
+        values["projector_rms_px"] = cal.rms["projector_rms"]
+        values["stereo_rms_px"] = cal.rms["stereo_rms"]
+        values.update(compare(cal, truth))
+        if result.response is not None:
+            values["color_mixing_error"] = float(np.abs(result.response.color_mixing - truth.color_mixing).max())
+            g = rig.options.projector_gamma
+            values["projector_gamma_error_pct"] = float(np.abs(result.response.gamma / g - 1).max() * 100)
+        values.update(plane_depth(cal, truth, decode_projector_maps))
+    rows = []
+    for key, value in values.items():
+        target = TARGETS.get(key)
+        ok = None if target is None or not np.isfinite(value) else bool(value <= target)
+        rows.append({"scene": scene, "metric": key, "value": float(value), "target": target, "ok": ok})
+    if sol.problems:
+        rows.append(
+            {
+                "scene": scene,
+                "metric": "problems",
+                "value": None,
+                "target": None,
+                "ok": False,
+                "note": "; ".join(sol.problems),
+            }
+        )
+    return rows
+
+
+def format_table(rows: list[dict]) -> str:
+    lines = [f"{'metric':<34} {'value':>10} {'target':>8}  ok"]
+    for r in rows:
+        target = f"<= {r['target']:g}" if r["target"] is not None else ""
+        ok = {True: "yes", False: "NO", None: ""}[r["ok"]]
+        if r["value"] is None:
+            lines.append(f"{r['metric']:<34} {r.get('note', '')}")
+            continue
+        lines.append(f"{r['metric']:<34} {r['value']:>10.4f} {target:>8}  {ok}")
+    return "\n".join(lines)
