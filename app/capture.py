@@ -31,9 +31,6 @@ import numpy as np
 from app.framesets import group_frame_sets
 from drivers.base import Camera, Frame, Projector, Trigger
 
-# A frame whose exposure began less than this after its flip may have seen the previous pattern.
-DEFAULT_FLIP_GUARD_NS = 0
-
 
 @dataclass(frozen=True)
 class Shown:
@@ -59,6 +56,10 @@ class FlipLog:
         self._entries[shown.tick] = shown
         while len(self._order) > self.maxlen:
             self._entries.pop(self._order.popleft(), None)
+
+    def clear(self) -> None:
+        self._entries.clear()
+        self._order.clear()
 
     def get(self, tick: int) -> Shown | None:
         return self._entries.get(tick)
@@ -115,6 +116,13 @@ class FrameSet:
 class _Accepted:
     frame: Frame
     tick: int
+    sample: np.ndarray | None = None  # sparse pixels for the alternation check
+    verified: bool = True  # passed the alternation check (or it is off)
+
+
+# A two-shot frame must differ from its predecessor (the inverse pattern) at least this many times
+# more than from the frame before that (the same pattern): a flip that came late repeats a pattern.
+ALTERNATION_RATIO = 2.0
 
 
 @dataclass
@@ -134,10 +142,13 @@ class FrameChecker:
     check_content: bool = True
     # Replay: the frames carry tags checked when they were recorded (no projector, no flip log).
     device_tags: bool = False
+    # Two-shot: check from the pixels that consecutive frames alternate (catches a late flip that
+    # left no trace in any counter). A pair then needs three consecutive frames after a break.
+    check_alternation: bool = False
     stats: CaptureStats = field(default_factory=CaptureStats)
 
     def __post_init__(self) -> None:
-        self._history: deque[_Accepted] = deque(maxlen=max(2, self.n_patterns))
+        self._history: deque[_Accepted] = deque(maxlen=max(3, self.n_patterns))
         self._trigger_base: int | None = 0  # tick of trigger count 1; None = waiting for an anchor
         self._id_base: int | None = None  # tick = frame_id - _id_base when no trigger count
         self._last_trigger: int | None = None
@@ -188,10 +199,10 @@ class FrameChecker:
             if self._last_trigger is not None and frame.trigger_count <= self._last_trigger:
                 if frame.trigger_count == self._last_trigger and frame.frame_id == self._last_id:
                     return self._refuse("duplicates", f"frame {frame.frame_id} received twice", break_pair=False)
-                st.resyncs += 1
-                self._trigger_base = None  # the loop re-anchors when it restarts the trigger
+                # The box reset: this frame belongs to a schedule the loop has not re-made yet.
                 self._last_trigger = frame.trigger_count
-                return self._refuse("untracked", "trigger counter went back (box reset?): waiting to re-anchor")
+                self._last_id = frame.frame_id
+                return self._refuse("untracked", "trigger counter went back (box reset?)")
             self._last_trigger = frame.trigger_count
         prev_id = self._last_id
         if prev_id is not None:
@@ -237,7 +248,21 @@ class FrameChecker:
             elif tick != last.tick + 1:
                 # ids consecutive but ticks not: the two counters disagree; trust neither for a pair.
                 self._history.clear()
-        self._history.append(_Accepted(tagged, tick))
+        acc = _Accepted(tagged, tick)
+        if self.check_alternation:
+            acc.sample = _alternation_sample(frame.image)
+            acc.verified = False
+            h = self._history
+            if len(h) >= 2 and h[-1].tick == tick - 1 and h[-2].tick == tick - 2:
+                d1 = float(np.mean(np.abs(acc.sample - h[-1].sample)))  # type: ignore[operator]
+                d2 = float(np.mean(np.abs(acc.sample - h[-2].sample)))  # type: ignore[operator]
+                if d1 <= ALTERNATION_RATIO * d2:
+                    st.tagged -= 1
+                    return self._refuse(
+                        "mistagged", f"frame {frame.frame_id}: its pattern does not alternate with the frame before"
+                    )
+                acc.verified = True
+        self._history.append(acc)
         return tagged, self._complete_set(arrival_ns)
 
     def _complete_set(self, arrival_ns: int) -> FrameSet | None:
@@ -245,6 +270,8 @@ class FrameChecker:
         if len(self._history) < need:
             return None
         window = list(self._history)[-need:]
+        if not window[-1].verified:
+            return None
         # Ticks stand in for frame ids: the checks above made both consecutive together.
         tags = [(a.tick, int(a.frame.pattern)) for a in window]  # type: ignore[arg-type]
         sets, _ = group_frame_sets(tags, self.scheme, self.n_patterns, sliding=True)
@@ -256,6 +283,11 @@ class FrameChecker:
             self._history.clear()
         self.stats.sets += 1
         return FrameSet(frames, fs.reversed_order, arrival_ns)
+
+
+def _alternation_sample(image: np.ndarray) -> np.ndarray:
+    """Every 8th pixel each way, as float32: enough to tell a pattern from its inverse."""
+    return image[4::8, 4::8].astype(np.float32)
 
 
 def _content_sample(image: np.ndarray) -> bytes:
@@ -284,12 +316,20 @@ class LoopEvent:
 
 
 class CaptureLoop:
-    """Drive projector + trigger + camera at `rate_hz`, tag, check and pair every frame.
+    """Drive projector + trigger + camera, tag, check and pair every frame.
 
-    Each step: wait for the tick's deadline (unless the projector's `show` blocks on vsync),
-    show the tick's pattern and log the flip, grab the next camera frame (whatever tick it belongs
-    to: the checker places it by its counters), and check it. All device calls happen on the
-    thread that calls `step` (pyglet windows require it).
+    With a trigger (the trigger box, or the virtual rig's), the trigger paces: each step reads the
+    trigger counter c, shows the pattern of tick c + 1 (`order[c % n]`: phase 0 = pattern 0, as the
+    box marks it), reads the counter again and logs the flip at tick c + 1 — or as late if a
+    trigger fired meanwhile (the camera may have seen either pattern) — then grabs the next frame,
+    which blocks until the camera has one. A frame is placed on its tick by its trigger count.
+    A show made while the counter reads c takes effect from tick c + 1 (the sim rig's timing, and
+    a projector whose flip precedes the vsync edge that fires the box).
+
+    Without a trigger, the loop paces itself at `rate_hz` (or the projector's vsync blocks in
+    `show`): show, then grab; ticks are the camera's frame ids, anchored on the first frame.
+    With no projector (replay), the frames' recorded tags are used and checked for pairing.
+    All device calls happen on the thread that calls `step` (pyglet windows require it).
     """
 
     def __init__(
@@ -303,8 +343,6 @@ class CaptureLoop:
         rate_hz: float = 60.0,
         timeout_s: float = 2.0,
         pace: bool = True,
-        late_ns: int | None = None,
-        trigger_poll: int = 15,
         clock: Callable[[], int] = time.monotonic_ns,
     ) -> None:
         self.camera, self.projector, self.trigger = camera, projector, trigger
@@ -314,17 +352,20 @@ class CaptureLoop:
         self.period_ns = int(1e9 / rate_hz)
         self.timeout_s = timeout_s
         self.pace = pace
-        self.late_ns = late_ns if late_ns is not None else self.period_ns // 2
         self.clock = clock
-        self.trigger_poll = max(1, trigger_poll)
-        self._free_running = False  # set at start(): the trigger fires from its own timer
         self.flips = FlipLog()
         # No projector (replay): the frames carry their recorded tags.
-        self.checker = FrameChecker(scheme, n_patterns, self.flips, device_tags=projector is None)
-        self.tick = 0
+        self.checker = FrameChecker(
+            scheme,
+            n_patterns,
+            self.flips,
+            device_tags=projector is None,
+            check_alternation=projector is not None and scheme == "two-shot",
+        )
+        self.tick = 0  # steps made
         self._deadline = 0
         self._started = False
-        self._trigger_last = 0
+        self._count = 0  # last trigger count read
 
     @property
     def stats(self) -> CaptureStats:
@@ -334,71 +375,82 @@ class CaptureLoop:
         self.camera.start()
         if self.trigger is not None:
             self.trigger.start(self.rate_hz)
-            self._trigger_last = 0
-            t = self.trigger
-            self._free_running = self.pace and (
-                bool(getattr(t, "free_running", False)) or getattr(t, "active_source", "") == "INT"
-            )
-        self.checker.anchor_trigger(0)
+            self._count = 0
+        self.checker.anchor_trigger(1)  # trigger count k is tick k
         self._deadline = self.clock()
         self._started = True
 
-    def _show(self) -> None:
-        if self.projector is None:
-            return
-        pattern = self.order[self.tick % len(self.order)]
-        due = self._deadline
-        ret = self.projector.show(pattern)
-        flip_ns = ret if isinstance(ret, int) and ret > 0 else self.clock()
-        # Only a trigger firing from its own clock can catch a late flip; a camera triggered by the
-        # flip (vsync) or grabbed after it always sees the new pattern.
-        late = self._free_running and flip_ns - due > self.late_ns
-        self.flips.record(Shown(self.tick, pattern, flip_ns, late))
-
     def step(self) -> LoopEvent:
-        """One tick: show, grab, check. Raises CameraTimeoutError if the camera stops sending."""
+        """One frame: show, grab, check. Raises CameraTimeoutError if the camera stops sending."""
         if not self._started:
             self.start()
-        if self.pace:
-            now = self.clock()
-            if self._deadline > now:
-                time.sleep((self._deadline - now) / 1e9)
-            elif now - self._deadline > 4 * self.period_ns:
-                self._deadline = now  # we fell far behind (a stall): do not try to catch up
-        self._show()
-        self._check_trigger()
+        if self.trigger is not None and self.projector is not None:
+            self._show_triggered()
+        else:
+            self._pace()
+            self._show_untriggered()
         frame = self.camera.grab(self.timeout_s)
         arrival = self.clock()
         if self.checker._id_base is None and frame.trigger_count is None and self.projector is not None:
-            # First frame (or first after a camera restart): it answers the flip just made.
+            # First frame (or the first after a camera restart): it answers the flip just made.
             self.checker.anchor_frame_id(frame.frame_id, self.tick)
         tagged, fs = self.checker.push(frame, arrival)
         self.tick += 1
-        self._deadline += self.period_ns
         return LoopEvent(tagged, frame, fs, arrival, "" if tagged is not None else self.checker.last_reason)
 
-    def _check_trigger(self) -> None:
-        """A trigger whose counter went back has reset: restart it, re-anchor the schedule.
-
-        Asked every `trigger_poll` ticks (a serial round trip costs time); the box driver also
-        raises TriggerResetError when it saw a BOOT line or a count going back.
-        """
-        if self.trigger is None or self.tick % self.trigger_poll:
+    def _pace(self) -> None:
+        if not self.pace:
             return
+        now = self.clock()
+        if self._deadline > now:
+            time.sleep((self._deadline - now) / 1e9)
+        elif now - self._deadline > 4 * self.period_ns:
+            self._deadline = now  # far behind (a stall): do not try to catch up
+        self._deadline += self.period_ns
+
+    def _show_untriggered(self) -> None:
+        if self.projector is None:
+            return
+        pattern = self.order[self.tick % len(self.order)]
+        ret = self.projector.show(pattern)
+        flip_ns = ret if isinstance(ret, int) and ret > 0 else self.clock()
+        self.flips.record(Shown(self.tick, pattern, flip_ns))
+
+    def _read_counter(self) -> int:
         from drivers.trigger.errors import TriggerResetError
 
         try:
-            count = self.trigger.counter()
+            return int(self.trigger.counter())  # type: ignore[union-attr]
         except TriggerResetError:
-            count = -1
-        if count < self._trigger_last:
-            self.checker.stats.resyncs += 1
-            self.checker.reset_pairing()
-            self.trigger.start(self.rate_hz)
-            # count 1 after the restart fires at the next tick
-            self.checker.anchor_trigger(self.tick + 1)
-            count = 0
-        self._trigger_last = count
+            return -1
+
+    def _show_triggered(self) -> None:
+        before = self._read_counter()
+        if before < self._count:
+            self._resync()
+            before = self._read_counter()
+        pattern = self.order[before % len(self.order)]
+        ret = self.projector.show(pattern)  # type: ignore[union-attr]
+        after = self._read_counter()
+        flip_ns = ret if isinstance(ret, int) and ret > 0 else self.clock()
+        if after < before:  # reset during the show: nothing shown here can be trusted
+            self._resync()
+            return
+        late = after != before
+        self.flips.record(Shown(before + 1, pattern, flip_ns, late))
+        if late:
+            for t in range(before + 2, after + 2):  # the show landed somewhere in here
+                self.flips.record(Shown(t, pattern, flip_ns, True))
+        self._count = after
+
+    def _resync(self) -> None:
+        """The trigger's counter went back (a box that rebooted): forget the schedule, restart it."""
+        self.checker.stats.resyncs += 1
+        self.flips.clear()
+        self.checker.reset_pairing()
+        self.checker.anchor_trigger(1)
+        self.trigger.start(self.rate_hz)  # type: ignore[union-attr]
+        self._count = 0
 
     def close(self) -> None:
         """Stop and close every device, even if one of them fails."""

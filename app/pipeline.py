@@ -146,12 +146,13 @@ class LivePipeline:
     make_loop: builds the CaptureLoop *on the acquisition thread* (a pyglet projector window must
     be used by the thread that opened it). max_frames: stop after that many camera frames.
     on_result: called on a worker thread with every Result (keep it short: store, don't draw).
+    processor None: no decoding (recording only).
     """
 
     def __init__(
         self,
         make_loop: Callable[[], CaptureLoop],
-        processor: Processor,
+        processor: Processor | None,
         *,
         workers: int = 1,
         queue_sets: int = 1,
@@ -190,8 +191,9 @@ class LivePipeline:
     def start(self) -> None:
         self.stats.started_ns = time.monotonic_ns()
         acq = threading.Thread(target=self._acquire, name="acquisition", daemon=True)
+        n_workers = self.workers if self.processor is not None else 0
         self._threads = [acq] + [
-            threading.Thread(target=self._decode_worker, name=f"decode-{i}", daemon=True) for i in range(self.workers)
+            threading.Thread(target=self._decode_worker, name=f"decode-{i}", daemon=True) for i in range(n_workers)
         ]
         for t in self._threads:
             t.start()
@@ -255,10 +257,11 @@ class LivePipeline:
                         rec = self.recorder
                     if rec is not None and rec.put(ev.frame):
                         self.stats.recorded += 1
-                if ev.frameset is not None:
+                if ev.frameset is not None and self.processor is not None:
                     self._push_set(ev.frameset)
         except SlscanError as exc:
-            self.error = str(exc)
+            if type(exc).__name__ != "EndOfDumpError":  # a replay that reached its end is a normal end
+                self.error = str(exc)
         except Exception as exc:  # a driver bug must still end the session cleanly, and say what
             self.error = f"{type(exc).__name__}: {exc}"
         finally:

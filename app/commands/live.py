@@ -54,7 +54,7 @@ SIM_MODULE = "drivers.sim.devices"
 class Session:
     """Everything a live run needs, built from one config file."""
 
-    config: Config
+    config: Config | None  # None: a replayed dump
     scheme: str
     patterns: PatternSet
     calibration: Calibration
@@ -63,11 +63,14 @@ class Session:
     make_devices: Callable[[], tuple[Any, Any, Any]]  # (camera, projector, trigger or None), on the calling thread
     scheme_options: dict = field(default_factory=dict)
     sim: Any = None  # the virtual rig, when the session runs on it (ground truth for tests and benches)
+    pace: bool = True  # False: the camera paces itself (a replayed dump)
+    source: str = ""  # what the session runs on, for messages
 
     def make_loop(self, **kw: Any) -> CaptureLoop:
         camera, projector, trigger = self.make_devices()
         if projector is not None:
             projector.load(self.patterns.images)
+        kw.setdefault("pace", self.pace)
         return CaptureLoop(camera, projector, trigger, self.scheme, len(self.patterns), rate_hz=self.rate_hz, **kw)
 
     def processor(self) -> Processor:
@@ -75,6 +78,8 @@ class Session:
 
     def with_scheme(self, scheme: str) -> Session:
         """The same rig with another pattern scheme (the view's `m` key)."""
+        if self.config is None:
+            raise InputError(f"{self.source}: a replayed dump has one scheme ({self.scheme})")
         return build_session(self.config, scheme=scheme)
 
 
@@ -191,21 +196,23 @@ def _sim_session(
         sim_devices = importlib.import_module(SIM_MODULE)
     except ImportError as exc:
         raise DeviceError(f"the virtual rig is not available ({exc})") from None
-    rig = sim_devices.make_sim_rig(cfg, **overrides) if overrides else sim_devices.make_sim_rig(cfg)
-    cam, proj, trig = rig.camera, rig.projector, rig.trigger
+    if overrides:  # tests and benches: the same config with some `sim:` keys replaced
+        cfg = Config(cfg.path, {**cfg.data, "sim": {**cfg.section("sim"), **overrides}})
+    devices = sim_devices.make_sim_rig(cfg)
+    rig = devices.rig
     calibration = rig.calibration
-    patterns = make_patterns(scheme, tuple(proj.size), **opts)
+    patterns = make_patterns(scheme, tuple(devices.projector.size), **opts)
     rng = tuple(depth_range) if depth_range else tuple(rig.depth_range_mm)
     used = {"done": False}
 
     def make_devices() -> tuple[Any, Any, Any]:
-        if used["done"]:  # a second loop (scheme switch) reuses the rig: reopen it
-            fresh = sim_devices.make_sim_rig(cfg, **overrides) if overrides else sim_devices.make_sim_rig(cfg)
+        if used["done"]:  # a second loop (scheme switch) gets a fresh virtual rig
+            fresh = sim_devices.make_sim_rig(cfg)
             return fresh.camera, fresh.projector, fresh.trigger
         used["done"] = True
-        return cam, proj, trig
+        return devices.camera, devices.projector, devices.trigger
 
-    return Session(cfg, scheme, patterns, calibration, rng, rate, make_devices, opts, sim=rig)  # type: ignore[arg-type]
+    return Session(cfg, scheme, patterns, calibration, rng, rate, make_devices, opts, sim=devices)  # type: ignore[arg-type]
 
 
 # ------------------------------------------------------------------------------------ command
@@ -310,7 +317,9 @@ def run_headless(session: Session, args: argparse.Namespace, label: str = "live"
 
 
 def describe(session: Session) -> str:
-    return "the virtual rig" if session.sim is not None else str(session.config.path)
+    if session.source:
+        return session.source
+    return "the virtual rig" if session.sim is not None else str(session.config.path if session.config else "?")
 
 
 def print_figures(fig: dict) -> None:

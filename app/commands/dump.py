@@ -1,0 +1,89 @@
+"""`slscan dump`: record raw tagged frames from the rig as a frame dump (format v1); `--repair` a killed one."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+from app.dump import repair_dump
+from app.errors import InputError
+from app.patterns import SCHEMES
+from app.pipeline import LivePipeline
+
+HELP = "record tagged camera frames from the rig as a frame dump (or --repair one whose writer was killed)"
+
+EPILOG = """\
+examples:
+  slscan dump --frames 600 --out rec/                 # 10 s of two-shot frames from the virtual rig
+  slscan dump --config rig.yaml --frames 120 --out rec2/ --png-level 1
+  slscan decode rec/ --out depth/                     # the dump carries its calibration and depth range
+  slscan dump --repair rec/                           # after a crash: index = the complete frames
+
+The dump is readable up to its last complete frame at any moment, even if slscan is killed.
+An existing --out is never overwritten. PNG level 0 (default) keeps up at 60 Hz with the most
+disk (~0.9 MB per 640x480 frame); level 1 halves the size for ~11 ms of one core per frame.
+"""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "dump", help=HELP, description=HELP, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    p.add_argument("--config", metavar="FILE", help="rig configuration (default: config/sim.yaml, the virtual rig)")
+    p.add_argument("--scheme", choices=SCHEMES, help="pattern scheme (default: the config's scheme.name)")
+    p.add_argument("--frames", type=int, metavar="N", help="number of camera frames to record")
+    p.add_argument("--out", metavar="DIR", help="the new dump folder (must not exist, or be empty)")
+    p.add_argument("--png-level", type=int, default=0, metavar="L", help="PNG compression 0..9 (default 0: fastest)")
+    p.add_argument("--timeout", type=float, default=2.0, metavar="S", help="camera timeout in seconds (default 2)")
+    p.add_argument("--repair", metavar="DUMP", help="repair a dump whose writer was killed, and exit")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.repair:
+        report = repair_dump(args.repair)
+        print(f"{args.repair}: {report.summary()}")
+        return 0
+    if args.frames is None or args.out is None:
+        raise InputError("--frames N and --out DIR are required (or --repair DUMP)")
+    if args.frames < 1:
+        raise InputError(f"--frames {args.frames}: must be at least 1")
+    from app.commands.live import build_session, describe, open_recorder
+
+    session = build_session(args.config, scheme=args.scheme)
+    recorder = open_recorder(session, args.out, args.png_level)
+    pipe = LivePipeline(lambda: session.make_loop(timeout_s=args.timeout), None, max_frames=args.frames)
+    pipe.set_recorder(recorder)
+    print(f"slscan dump: {session.scheme} frames from {describe(session)} -> {args.out}", file=sys.stderr)
+    interrupted = False
+    t0 = time.monotonic()
+    try:
+        pipe.start()
+        pipe.wait()
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        pipe.stop()
+        pipe.join()
+        stats = recorder.close()
+    elapsed = time.monotonic() - t0
+    cap = pipe.capture
+    print(
+        f"{cap.frames} frames in {elapsed:.1f} s ({cap.frames / max(elapsed, 1e-9):.1f}/s); "
+        f"dropped {cap.dropped}, refused {cap.refused} (untagged frames are never recorded)"
+    )
+    print(recorder.summary())
+    if stats.write_ms:
+        w = sorted(stats.write_ms)
+        print(f"write time per frame: median {w[len(w) // 2]:.1f} ms, max {w[-1]:.1f} ms")
+    if pipe.error:
+        print(f"slscan dump: stopped: {pipe.error}; the dump is finalised", file=sys.stderr)
+        return 2
+    if recorder.message:
+        print(f"slscan dump: {recorder.message}", file=sys.stderr)
+        return 2
+    if interrupted:
+        print("slscan dump: interrupted; the dump is finalised", file=sys.stderr)
+        return 130
+    return 0

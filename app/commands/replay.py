@@ -1,0 +1,80 @@
+"""`slscan replay DUMP`: play a recorded dump through the live pipeline (window, or --headless)."""
+
+from __future__ import annotations
+
+import argparse
+
+from app.errors import InputError
+
+HELP = "play a frame dump through the live pipeline and view (or --headless)"
+
+EPILOG = """\
+examples:
+  slscan replay rec/                         # in the operator window, at the recorded pace
+  slscan replay rec/ --headless --out last/  # as fast as it decodes; prints the figures, saves the last scan
+  slscan replay rec/ --headless --realtime   # at the recorded pace (as the live session saw it)
+
+The dump's own tags, calibration and depth range are used (--calibration overrides the calibration).
+"""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "replay", help=HELP, description=HELP, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    p.add_argument("dump", metavar="DUMP", help="a frame dump folder (slscan dump, r in the live view)")
+    p.add_argument("--headless", action="store_true", help="no window: print the figures, save the last scan")
+    p.add_argument("--realtime", action="store_true", help="headless: play at the recorded pace (window: always)")
+    p.add_argument("--calibration", metavar="FILE", help="use this calibration instead of the dump's")
+    p.add_argument("--frames", type=int, metavar="N", help="stop after N frames (default: the whole dump)")
+    p.add_argument("--out", metavar="DIR", help="headless: folder for the last scan (default live-YYYYmmdd-HHMMSS)")
+    p.add_argument("--workers", type=int, default=1, help="decode threads (default 1)")
+    p.add_argument("--timeout", type=float, default=2.0, metavar="S", help="camera timeout in seconds (default 2)")
+    p.set_defaults(func=run, record=None, png_level=0)
+
+
+def replay_session(dump_path: str, calibration: str | None = None, realtime: bool = False):
+    """A Session whose camera is the replay camera over `dump_path` (no projector, no trigger)."""
+    from app.commands.live import Session
+    from app.dump import read_dump
+    from calibration.model import Calibration
+    from drivers.camera.replay import ReplayCamera
+
+    dump = read_dump(dump_path)
+    cal = Calibration.load(calibration) if calibration else dump.calibration()
+    if cal is None:
+        raise InputError(f"{dump_path}: the dump carries no calibration; give one with --calibration FILE")
+    patterns = dump.patterns()
+    n = len(patterns)
+    bad = [i for i, f in enumerate(dump.frames) if f.pattern >= n]
+    if bad:
+        raise InputError(f"{dump_path}/dump.yaml: frames[{bad[0]}].pattern is outside 0..{n - 1}")
+
+    def make_devices():
+        return ReplayCamera(dump, realtime=realtime), None, None
+
+    rate = 60.0
+    return Session(
+        None, dump.scheme, patterns, cal, dump.depth_range_mm(), rate, make_devices, pace=False, source=str(dump_path)
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.frames is not None and args.frames < 1:
+        raise InputError(f"--frames {args.frames}: must be at least 1")
+    if args.headless:
+        from app.commands.live import run_headless
+
+        session = replay_session(args.dump, args.calibration, realtime=args.realtime)
+        if args.frames is None:
+            args.frames = 10**12  # the whole dump: the replay camera ends the run
+        return run_headless(session, args, label="replay")
+    import os
+
+    from app.errors import DeviceError
+
+    if not os.environ.get("DISPLAY"):
+        raise DeviceError("no display for the view (DISPLAY is not set): run `slscan replay DUMP --headless` instead")
+    from app.view import run_view
+
+    return run_view(replay_session(args.dump, args.calibration, realtime=True), args)
