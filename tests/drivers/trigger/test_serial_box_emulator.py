@@ -6,6 +6,7 @@ import itertools
 import time
 
 import pytest
+import serial
 
 from app.errors import DeviceError, InputError
 from drivers.base import TRIGGERS, Trigger
@@ -64,6 +65,19 @@ def test_events_count_and_mark_each_pattern_cycle(emulator):
         box.start(200)
         first = box.next_event(1.0)
         assert (first.count, first.phase) == (1, 0)
+
+
+def test_open_a_box_left_running_by_another_session(emulator):
+    with serial.Serial(emulator.port, proto.BAUD) as other:  # a previous session started it and went away
+        other.write(proto.encode("CYC", 3) + proto.encode("START"))
+        time.sleep(0.1)
+    assert emulator.running and emulator.count > 0
+    with open_box(emulator.port, cycle=2) as box:  # a different cycle: its old events must not count
+        time.sleep(0.1)
+        assert box.drain_events() == []
+        box.start(100)
+        assert [(e.count, e.phase) for e in (box.next_event(1.0) for _ in range(4))] == [(1, 0), (2, 1), (3, 0), (4, 1)]
+        assert box.missed_events == 0
 
 
 def test_resync_after_garbage_between_events(emulator):
