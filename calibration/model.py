@@ -119,6 +119,7 @@ class Calibration:
                 if not node.empty():
                     rms[key] = float(node.real())
             mixing = None if fs.getNode("color_mixing").empty() else mat("color_mixing", (3, 3))
+            extra = _read_extra(fs, path)
             cal = cls(
                 camera_size=size("camera_size"),
                 camera_matrix=mat("camera_matrix", (3, 3)),
@@ -130,6 +131,7 @@ class Calibration:
                 T=mat("T", (3,)),
                 rms=rms,
                 color_mixing=mixing,
+                extra=extra,
             )
         finally:
             fs.release()
@@ -155,6 +157,34 @@ class Calibration:
                 f"{where}: frames are {width}x{height} but the calibration's camera_size is "
                 f"{self.camera_size[0]}x{self.camera_size[1]}"
             )
+
+
+KNOWN_KEYS = {
+    "camera_size", "camera_matrix", "camera_distortion", "projector_size", "projector_matrix",
+    "projector_distortion", "R", "T", "color_mixing", *RMS_KEYS,
+}  # fmt: skip
+
+
+def _read_extra(fs: cv2.FileStorage, path: Path) -> dict[str, np.ndarray | float]:
+    """Every other top-level number or matrix (e.g. camera_gamma, response curves) into `extra`."""
+    extra: dict[str, np.ndarray | float] = {}
+    root = fs.root()
+    for key in root.keys():
+        if key in KNOWN_KEYS:
+            continue
+        node = fs.getNode(key)
+        if node.isReal() or node.isInt():
+            extra[key] = float(node.real())
+        elif not node.isMap() and not node.isSeq():
+            continue
+        else:
+            try:
+                m = node.mat()
+            except (cv2.error, SystemError):
+                m = None
+            if m is not None and np.all(np.isfinite(m)):
+                extra[key] = np.asarray(m, np.float64)
+    return extra
 
 
 def _dist5(d: np.ndarray) -> np.ndarray:

@@ -113,7 +113,7 @@ def solve_capture(
     if solution.calibration is not None and response is not None:
         solution.calibration.color_mixing = response.color_mixing
         solution.calibration.extra.update(response.as_extra())
-        solution.calibration.extra["response_camera_gamma"] = float(camera_gamma)
+        solution.calibration.extra["camera_gamma"] = float(camera_gamma)  # the decoders read this key
     try:
         truth = capture.true_calibration()
     except Exception:  # a stored truth is optional; a broken one must not stop the solve
