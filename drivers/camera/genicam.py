@@ -38,6 +38,7 @@ from drivers.camera.errors import (
     NoDeviceError,
     UnsupportedFeatureError,
 )
+from drivers.camera.features import NodeFeatures, apply_settings, configure_trigger
 from drivers.camera.gentl import HUB, producer_paths
 from drivers.camera.spec import as_bool
 
@@ -363,96 +364,10 @@ class GenICamCamera:
         return self._ia
 
     def _configure(self) -> None:
-        nm = self._ia.remote_device.node_map
-        s = self.settings
-        if s["pixel_format"] is not None:
-            if not pixels.is_supported(s["pixel_format"]):
-                raise UnsupportedFeatureError(
-                    f"{self.device}: slscan cannot convert pixel format {s['pixel_format']!r} "
-                    f"(supported: {_supported_list(nm)})"
-                )
-            self._set_enum(nm, "PixelFormat", s["pixel_format"])
-        self.pixel_format = str(nm.PixelFormat.value) if nm.has_node("PixelFormat") else "Mono8"
-        if not pixels.is_supported(self.pixel_format):
-            raise UnsupportedFeatureError(
-                f"{self.device}: pixel format {self.pixel_format!r} is not supported; set pixel_format to one of "
-                f"{_supported_list(nm)}"
-            )
-        # ROI: zero the offsets first so a larger width/height fits, then size, then offsets.
-        if s["width"] is not None or s["height"] is not None or s["offset_x"] or s["offset_y"]:
-            for off in ("OffsetX", "OffsetY"):
-                if nm.has_node(off) and _writable(nm, off):
-                    self._set(nm, off, 0)
-            roi_features = (("width", "Width"), ("height", "Height"), ("offset_x", "OffsetX"), ("offset_y", "OffsetY"))
-            for key, feat in roi_features:
-                if s[key] is not None and not (s[key] == 0 and not nm.has_node(feat)):
-                    self._set(nm, feat, s[key])
-        if s["exposure_us"] is not None:
-            self._set_off(nm, "ExposureAuto")
-            self._set(nm, _first(nm, "ExposureTime", "ExposureTimeAbs") or "ExposureTime", s["exposure_us"])
-        if s["gain_db"] is not None:
-            self._set_off(nm, "GainAuto")
-            self._set(nm, _first(nm, "Gain", "GainAbs") or "Gain", s["gain_db"])
-        if s["frame_rate"] is not None:
-            if nm.has_node("AcquisitionFrameRateEnable") and _writable(nm, "AcquisitionFrameRateEnable"):
-                nm.AcquisitionFrameRateEnable.value = True
-            feat = _first(nm, "AcquisitionFrameRate", "AcquisitionFrameRateAbs") or "AcquisitionFrameRate"
-            self._set(nm, feat, s["frame_rate"])
-        self._configure_trigger(nm)
-        self.settings_now = {
-            "width": int(nm.Width.value) if nm.has_node("Width") else 0,
-            "height": int(nm.Height.value) if nm.has_node("Height") else 0,
-        }
-
-    def _configure_trigger(self, nm: Any) -> None:
-        if self.trigger is None:
-            if nm.has_node("TriggerMode") and _writable(nm, "TriggerMode"):
-                if nm.has_node("TriggerSelector") and self.trigger_selector in _symbolics(nm, "TriggerSelector"):
-                    nm.TriggerSelector.value = self.trigger_selector
-                nm.TriggerMode.value = "Off"  # free-running, whatever the camera was left in
-            return
-        if not nm.has_node("TriggerMode"):
-            raise UnsupportedFeatureError(
-                f"{self.device}: has no TriggerMode feature, so it cannot run hardware-triggered; "
-                "remove `trigger` from the camera config or use a camera with a trigger input"
-            )
-        if nm.has_node("TriggerSelector"):
-            self._set_enum(nm, "TriggerSelector", self.trigger_selector)
-        self._set_enum(nm, "TriggerMode", "On")
-        if nm.has_node("TriggerSource"):
-            self._set_enum(nm, "TriggerSource", self.trigger)
-        elif self.trigger:
-            raise UnsupportedFeatureError(f"{self.device}: has no TriggerSource feature to select {self.trigger!r}")
-        if nm.has_node("TriggerActivation"):
-            self._set_enum(nm, "TriggerActivation", self.trigger_edge)
-
-    def _set_off(self, nm: Any, feat: str) -> None:
-        if nm.has_node(feat) and _writable(nm, feat) and "Off" in _symbolics(nm, feat):
-            getattr(nm, feat).value = "Off"
-
-    def _set_enum(self, nm: Any, feat: str, value: str) -> None:
-        if not nm.has_node(feat):
-            raise UnsupportedFeatureError(f"{self.device}: has no {feat} feature (cannot set {value!r})")
-        options = _symbolics(nm, feat)
-        if options and value not in options:
-            raise UnsupportedFeatureError(
-                f"{self.device}: {feat} {value!r} is not offered (the camera offers: {', '.join(options)})"
-            )
-        self._set(nm, feat, value)
-
-    def _set(self, nm: Any, feat: str, value: Any) -> None:
-        from genicam.genapi import GenericException, OutOfRangeException
-
-        if not nm.has_node(feat):
-            raise UnsupportedFeatureError(f"{self.device}: has no {feat} feature (asked to set it to {value!r})")
-        node = getattr(nm, feat)
-        try:
-            node.value = value
-        except OutOfRangeException:
-            lo, hi = getattr(node, "min", "?"), getattr(node, "max", "?")
-            raise UnsupportedFeatureError(f"{self.device}: {feat}={value} is outside its range {lo}..{hi}") from None
-        except GenericException as exc:
-            raise UnsupportedFeatureError(f"{self.device}: cannot set {feat}={value} ({_msg(exc)})") from None
+        f = NodeFeatures(self._ia.remote_device.node_map, self.device)
+        self.pixel_format = apply_settings(f, self.settings)
+        configure_trigger(f, self.trigger, self.trigger_edge, self.trigger_selector)
+        self.settings_now = {"width": int(f.value("Width", 0)), "height": int(f.value("Height", 0))}
 
 
 def _queue(raw: Any) -> None:
@@ -472,28 +387,3 @@ def _get(raw: Any, key: str) -> Any:
 def _msg(exc: BaseException) -> str:
     text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
     return text[:200]
-
-
-def _symbolics(nm: Any, feat: str) -> list[str]:
-    try:
-        return list(getattr(nm, feat).symbolics)
-    except Exception:
-        return []
-
-
-def _writable(nm: Any, feat: str) -> bool:
-    from genicam.genapi import is_writable
-
-    try:
-        return bool(is_writable(getattr(nm, feat).node))
-    except Exception:
-        return True  # let the write itself report the problem
-
-
-def _first(nm: Any, *names: str) -> str | None:
-    return next((n for n in names if nm.has_node(n)), None)
-
-
-def _supported_list(nm: Any) -> str:
-    offered = [f for f in _symbolics(nm, "PixelFormat") if pixels.is_supported(f)]
-    return ", ".join(offered) or "none offered by this camera"
