@@ -49,7 +49,7 @@ class Raw:
     @property
     def timestamp_ns(self):
         if self._ts is None:
-            raise NotAvailableErrorError("timestamps not supported")
+            raise NotAvailableError("timestamps not supported")
         return self._ts
 
 
