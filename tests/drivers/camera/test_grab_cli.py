@@ -86,3 +86,14 @@ def test_timeout_and_bad_arguments(tmp_path, capsys):
     assert "no frame within the timeout" in capsys.readouterr().err
     assert main(["grab", "--camera", "sim", "--frames", "0", "--out", str(tmp_path / "z")]) == 2
     assert "--frames 0 must be at least 1" in capsys.readouterr().err
+
+
+@pytest.mark.slow  # the virtual rig's set-up takes seconds (another area's cost, not the grab's)
+def test_grab_from_the_virtual_rig(tmp_path):
+    pytest.importorskip("drivers.sim.devices")
+    out = tmp_path / "sim"
+    assert main(["grab", "--camera", "sim", "--frames", "2", "--out", str(out)]) == 0
+    index = yaml.safe_load((out / "frames.yaml").read_text())
+    assert [f["frame_id"] for f in index["frames"]] == [1, 2]
+    img = read_rgb(out / "000001.png")
+    assert img.ndim == 3 and img.shape[2] == 3 and img.std() > 0  # a rendered scene, not a blank
