@@ -102,11 +102,25 @@ class Geometry:
             raise InputError(f"{where}: the projector points straight up or down; aim it at the scene")
 
 
+_RAY_CACHE: dict[bytes, np.ndarray] = {}
+
+
 def camera_rays(K: np.ndarray, dist: np.ndarray, size: tuple[int, int], step: float = 1.0) -> np.ndarray:
     """Unit ray directions (h, w, 3) through camera pixel centres (undistorted, camera frame).
 
-    `step` < 1 samples a finer grid (sub-pixel positions), e.g. for supersampling.
+    `step` < 1 samples a finer grid (sub-pixel positions). Cached: rigs with the same camera share them.
     """
+    key = np.concatenate([np.ravel(K), np.ravel(dist), [size[0], size[1], step]]).tobytes()
+    if key not in _RAY_CACHE:
+        if len(_RAY_CACHE) > 4:
+            _RAY_CACHE.clear()
+        rays = _camera_rays(K, dist, size, step)
+        rays.flags.writeable = False
+        _RAY_CACHE[key] = rays
+    return _RAY_CACHE[key]
+
+
+def _camera_rays(K: np.ndarray, dist: np.ndarray, size: tuple[int, int], step: float) -> np.ndarray:
     w, h = size
     xs = np.arange(0, w, step, dtype=np.float64)
     ys = np.arange(0, h, step, dtype=np.float64)

@@ -26,6 +26,7 @@ import numpy as np
 
 from app.errors import InputError
 from calibration.model import Calibration
+from drivers.sim.kernels import light_to_linear, sensor
 from drivers.sim.optics import Geometry, camera_rays, project
 from drivers.sim.scene import Board, Scene, SceneError, load_scene
 from drivers.sim.shapes import Shape
@@ -142,6 +143,12 @@ class VirtualRig:
         self.frame_index = 0  # renders so far (drives motion)
         self._motion_step = 0
         self._black: PreparedPattern | None = None
+        self._mix32 = np.ascontiguousarray(self._crosstalk, np.float32)
+        self._buf: np.ndarray | None = None
+        self._buf2: np.ndarray | None = None
+        self._prep_lut = (
+            options.black_level + options.brightness * (np.arange(256) / 255.0) ** options.projector_gamma
+        ).astype(np.float32)
         self._precompute(self._base_shapes)
 
     # ------------------------------------------------------------------ construction
@@ -427,10 +434,9 @@ class VirtualRig:
                 f"found {p.dtype} shape {p.shape}"
             )
         o = self.options
-        lut = (o.black_level + o.brightness * (np.arange(256) / 255.0) ** o.projector_gamma).astype(np.float32)
-        lin = lut[p]
+        lin = cv2.LUT(np.ascontiguousarray(p), self._prep_lut.reshape(1, 256))
         if o.defocus_sigma_px > 0:
-            lin = cv2.GaussianBlur(lin, (0, 0), o.defocus_sigma_px, borderType=cv2.BORDER_REPLICATE)
+            cv2.GaussianBlur(lin, (0, 0), o.defocus_sigma_px, dst=lin, borderType=cv2.BORDER_REPLICATE)
         return PreparedPattern(np.ascontiguousarray(lin))
 
     def black(self) -> PreparedPattern:
@@ -458,21 +464,33 @@ class VirtualRig:
     def _form(self, light: np.ndarray) -> np.ndarray:
         o = self.options
         h, w = self._coef.shape[:2]
-        proj = cv2.remap(light, self._map, None, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-        img = cv2.multiply(proj, self._coef)
-        img = cv2.add(img, self._ambient)
-        if not np.array_equal(self._crosstalk, np.eye(3)):
-            img = cv2.transform(img, self._crosstalk.astype(np.float32))
+        if self._buf is None or self._buf.shape != (h, w, 3):
+            self._buf = np.empty((h, w, 3), np.float32)
+            self._buf2 = np.empty((h, w, 3), np.float32)
+        light_to_linear(light, self._map, self._coef, self._ambient, self._mix32, self._buf)
+        img = self._buf
         if o.psf_sigma_px > 0:
-            img = cv2.GaussianBlur(img, (0, 0), o.psf_sigma_px * w / 640.0, borderType=cv2.BORDER_REPLICATE)
-        flat = img.reshape(h, w * 3)  # one channel, so OpenCV's scalar arithmetic covers all values
-        if self._noise_bank is not None:
-            var = cv2.add(cv2.multiply(cv2.max(flat, 0.0), 1.0 / o.full_well), o.read_noise**2)
-            start = int(self._rng.integers(0, len(self._noise_bank) - flat.size))
-            z = self._noise_bank[start : start + flat.size].reshape(h, w * 3)
-            flat = cv2.add(flat, cv2.multiply(cv2.sqrt(var), z))
-        code = cv2.multiply(flat, 65535.0, dtype=cv2.CV_16U)  # saturates: clipping at the top and at 0
-        return np.take(self._lut, code).reshape(h, w, 3)
+            cv2.GaussianBlur(img, (0, 0), o.psf_sigma_px * w / 640.0, dst=self._buf2, borderType=cv2.BORDER_REPLICATE)
+            img = self._buf2
+        out = np.empty((h, w, 3), self._lut.dtype)
+        flat = img.reshape(-1)
+        start = 0
+        bank = self._noise_bank
+        if bank is not None:
+            start = int(self._rng.integers(0, len(bank) - flat.size))
+        else:
+            bank = np.zeros(1, np.float32)
+        sensor(
+            flat,
+            bank,
+            start,
+            self._noise_bank is not None,
+            1.0 / o.full_well,
+            o.read_noise**2,
+            self._lut,
+            out.reshape(-1),
+        )
+        return out
 
 
 def _int_pair(v: object, key: str, where: str) -> tuple[int, int]:

@@ -295,10 +295,11 @@ class Relief(Shape):
 
     def normal(self, X: np.ndarray, face: np.ndarray) -> np.ndarray:
         xl = self.point_to_local(X)
-        e = 1e-3
-        x, y = xl[:, 0], xl[:, 1]
-        hx = (self.height(x + e, y) - self.height(x - e, y)) / (2 * e)
-        hy = (self.height(x, y + e) - self.height(x, y - e)) / (2 * e)
+        bumps = np.asarray(self.bumps, np.float64).reshape(-1, 5)
+        a, b = self.semi_axes
+        hx, hy = _relief_gradient(
+            np.ascontiguousarray(xl[:, 0]), np.ascontiguousarray(xl[:, 1]), a, b, self.depth, bumps
+        )
         # surface z = -h: outward (toward the camera) normal is (-(dz/dx), -(dz/dy), 1) flipped to -z
         n = np.stack([-hx, -hy, -np.ones_like(hx)], axis=1)
         n /= np.linalg.norm(n, axis=1, keepdims=True)
@@ -362,23 +363,22 @@ def _relief_hits(
 ) -> np.ndarray:
     """First crossing of each ray with the relief surface z = -h(x, y).
 
-    March in 1 mm steps on the gridded height to bracket the first crossing, then Newton on the
+    March (adaptive steps) on the gridded height to bracket the first crossing, then Newton on the
     exact analytic height (bisection fallback) to ~1e-7 mm.
     """
     n = o.shape[0]
     out = np.full(n, np.inf)
     for i in range(n):
-        length = t1[i] - t0[i]
-        steps = max(4, min(4000, int(length / 1.0) + 1))
-        prev_t = t0[i]
+        t = t0[i]
+        prev_t = t
         prev_f = 1.0
-        for s in range(steps + 1):
-            t = t0[i] + length * s / steps
+        first = True
+        while True:
             x = o[i, 0] + t * d[i, 0]
             y = o[i, 1] + t * d[i, 1]
             h = _grid_height(x, y, grid, x0, y0, step)
             fv = 1.0 if h < 0 else -(o[i, 2] + t * d[i, 2]) - h
-            if s > 0 and prev_f > 0 and fv <= 0:
+            if not first and prev_f > 0 and fv <= 0:
                 lo, hi = prev_t, t
                 # Newton on the exact surface from the bracket's interpolated root
                 tn = hi - fv * (hi - lo) / (fv - prev_f)
@@ -417,5 +417,23 @@ def _relief_hits(
                         break
                 out[i] = 0.5 * (lo + hi)
                 break
+            if t >= t1[i]:
+                break
             prev_t, prev_f = t, fv
+            first = False
+            # adaptive march: half the height gap above the surface, 0.25..4 mm; 1 mm off the support
+            t = min(t + (min(max(0.5 * fv, 0.25), 4.0) if h >= 0 else 1.0), t1[i])
     return out
+
+
+@numba.njit(cache=True)
+def _relief_gradient(
+    x: np.ndarray, y: np.ndarray, a: float, b: float, depth: float, bumps: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    hx = np.zeros(x.shape[0])
+    hy = np.zeros(x.shape[0])
+    for i in range(x.shape[0]):
+        _, gx, gy = _relief_exact(x[i], y[i], a, b, depth, bumps)
+        hx[i] = gx
+        hy[i] = gy
+    return hx, hy

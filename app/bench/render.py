@@ -1,0 +1,80 @@
+"""`slscan bench --render`: the virtual rig's per-frame render time (the live session needs < 16 ms)."""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import cv2
+import numpy as np
+
+FLAG = "--render"
+KEY = "render"
+HELP = "virtual rig: per-frame render time on one core at 640x480 and 1280x1024 (after per-scene precomputation)"
+
+SIZES = ((640, 480), (1280, 1024))
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--render-scene", default="face", metavar="NAME", help="scene for --render (default face)")
+    parser.add_argument("--render-frames", type=int, default=60, metavar="N", help="frames timed per size (default 60)")
+
+
+def run(args: argparse.Namespace) -> list[dict]:
+    from app.patterns import two_shot_patterns
+    from drivers.sim.rig import VirtualRig
+
+    scene = getattr(args, "render_scene", "face")
+    n = max(5, int(getattr(args, "render_frames", 60)))
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)  # one core, as the target says
+    rows = []
+    try:
+        for size in SIZES:
+            t0 = time.perf_counter()
+            rig = VirtualRig.from_preset(scene, camera_size=size)
+            precompute_s = time.perf_counter() - t0
+            patterns = two_shot_patterns(rig.projector_size)
+            prepared = [rig.prepare(img) for img in patterns.images]
+            for i in range(3):  # warm-up
+                rig.render(prepared[i % 2])
+            times = []
+            for i in range(n):
+                t = time.perf_counter()
+                rig.render(prepared[i % 2])
+                times.append(time.perf_counter() - t)
+            raw = []
+            for i in range(max(5, n // 4)):
+                t = time.perf_counter()
+                rig.render(patterns.images[i % 2])  # unprepared: gamma + defocus of the pattern every call
+                raw.append(time.perf_counter() - t)
+            med = float(np.median(times)) * 1e3
+            rows.append(
+                {
+                    "scene": scene,
+                    "resolution": f"{size[0]}x{size[1]}",
+                    "precompute_s": round(precompute_s, 2),
+                    "median_ms": round(med, 2),
+                    "p95_ms": round(float(np.percentile(times, 95)) * 1e3, 2),
+                    "unprepared_median_ms": round(float(np.median(raw)) * 1e3, 2),
+                    "frames_per_s": round(1e3 / med, 1),
+                }
+            )
+    finally:
+        cv2.setNumThreads(threads)
+    return rows
+
+
+def format_table(rows: list[dict]) -> str:
+    head = (
+        f"{'scene':<14}{'resolution':>11}{'precompute s':>14}{'median ms':>11}{'p95 ms':>9}"
+        f"{'unprepared ms':>15}{'fps':>8}"
+    )
+    lines = [head]
+    for r in rows:
+        lines.append(
+            f"{r['scene']:<14}{r['resolution']:>11}{r['precompute_s']:>14.2f}{r['median_ms']:>11.2f}"
+            f"{r['p95_ms']:>9.2f}{r['unprepared_median_ms']:>15.2f}{r['frames_per_s']:>8.1f}"
+        )
+    lines.append("(one core; 'unprepared' = render(ndarray), converting the pattern each call)")
+    return "\n".join(lines)
