@@ -47,7 +47,7 @@ def group_frame_sets(
     for i in range(1, len(tags)):
         if tags[i][0] != tags[i - 1][0] + 1:
             stats.gaps += 1
-    for fid, pat in tags:
+    for _, pat in tags:
         if not 0 <= pat < n_patterns:
             stats.bad_tags += 1
     if scheme == "one-shot":

@@ -14,6 +14,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+# Pixels beyond a chain's outer stripe edges keep a value up to this many stripes out (the end stripe's
+# own pixels; its far side is not measured, so beyond half a stripe is the blur of a shadow edge).
+END_EXT = 0.5
+
 
 @njit(cache=True, nogil=True)
 def _block_extrema(feat, y, c, block, nb, bmax, bmin, absolute):
@@ -35,13 +39,15 @@ def _block_extrema(feat, y, c, block, nb, bmax, bmin, absolute):
 
 
 @njit(cache=True, nogil=True)
-def twoshot_classify(f1, f2, unmix, t_abs, t_rel, block, code, feat):
+def twoshot_classify(f1, f2, lin, dlin, unmix, t_abs, t_rel, block, code, feat, noise):
     """code[y, x] = bits (1 = channel max in frame 1, i.e. frame2 - frame1 < 0), -1 when unsure.
 
-    feat[y, x, c] = unmixed frame2 - frame1 of pattern channel c. A sign counts only when |d| is
-    above the noise floor t_abs and above t_rel times the channel's local amplitude (max |d| over
-    about 3 blocks), so coloured surfaces (small amplitude in one channel) keep their codes while
-    stripe edges (d crossing zero) and shadows (no amplitude) give no code.
+    Raw values are linearised through lin (3, L) (the camera response), then feat[y, x, c] =
+    unmixed linear frame2 - frame1 of pattern channel c. A sign counts only when |d| is above the
+    noise floor (t_abs raw 8-bit DN carried through the response slope dlin: noise[y, x, c]) and
+    above t_rel times the channel's local amplitude (max |d| over about 3 blocks), so coloured
+    surfaces (small amplitude in one channel) keep their codes while stripe edges (d crossing
+    zero) and shadows (no amplitude) give no code.
     """
     H, W = code.shape
     m = unmix.shape[0]
@@ -50,11 +56,24 @@ def twoshot_classify(f1, f2, unmix, t_abs, t_rel, block, code, feat):
     bmin = np.empty(nb, np.float32)
     for y in range(H):
         for x in range(W):
-            d0 = np.float32(f2[y, x, 0]) - np.float32(f1[y, x, 0])
-            d1 = np.float32(f2[y, x, 1]) - np.float32(f1[y, x, 1])
-            d2 = np.float32(f2[y, x, 2]) - np.float32(f1[y, x, 2])
+            a0 = f1[y, x, 0]
+            a1 = f1[y, x, 1]
+            a2 = f1[y, x, 2]
+            b0 = f2[y, x, 0]
+            b1 = f2[y, x, 1]
+            b2 = f2[y, x, 2]
+            d0 = lin[0, b0] - lin[0, a0]
+            d1 = lin[1, b1] - lin[1, a1]
+            d2 = lin[2, b2] - lin[2, a2]
+            n0 = dlin[0, b0] + dlin[0, a0]
+            n1 = dlin[1, b1] + dlin[1, a1]
+            n2 = dlin[2, b2] + dlin[2, a2]
             for c in range(m):
-                feat[y, x, c] = unmix[c, 0] * d0 + unmix[c, 1] * d1 + unmix[c, 2] * d2
+                u0 = unmix[c, 0]
+                u1 = unmix[c, 1]
+                u2 = unmix[c, 2]
+                feat[y, x, c] = u0 * d0 + u1 * d1 + u2 * d2
+                noise[y, x, c] = t_abs * 0.5 * (abs(u0) * n0 + abs(u1) * n1 + abs(u2) * n2)
         for c in range(m):
             _block_extrema(feat, y, c, block, nb, bmax[c], bmin, True)
         for x in range(W):
@@ -68,8 +87,8 @@ def twoshot_classify(f1, f2, unmix, t_abs, t_rel, block, code, feat):
                 if b + 1 < nb and bmax[c, b + 1] > a:
                     a = bmax[c, b + 1]
                 thr = t_rel * a
-                if thr < t_abs:
-                    thr = t_abs
+                if thr < noise[y, x, c]:
+                    thr = noise[y, x, c]
                 d = feat[y, x, c]
                 if abs(d) < thr:
                     ok = False
@@ -203,7 +222,7 @@ def _pixel_runs(code, feat, wts, link_ok, y, gap_max, rs, re, rc, link, edge, le
 
 
 @njit(cache=True, nogil=True)
-def _sign_events(feat, y, c, thr_lo, block, nb, bmax, gap_max, ex, es, et):
+def _sign_events(feat, noise, y, c, t_rel, block, nb, bmax, gap_max, ex, es, et):
     """Events of channel c along row y: 0 = becomes known (sign es), 1 = sign change, 2 = unknown."""
     W = feat.shape[1]
     n = 0
@@ -218,9 +237,9 @@ def _sign_events(feat, y, c, thr_lo, block, nb, bmax, gap_max, ex, es, et):
             a = bmax[b - 1]
         if b + 1 < nb and bmax[b + 1] > a:
             a = bmax[b + 1]
-        thr = thr_lo[1] * a
-        if thr < thr_lo[0]:
-            thr = thr_lo[0]
+        thr = t_rel * a
+        if thr < noise[y, x, c]:
+            thr = noise[y, x, c]
         s = 1 if d >= thr else (-1 if d <= -thr else 0)
         if s == 0:
             continue
@@ -263,7 +282,7 @@ def _sign_events(feat, y, c, thr_lo, block, nb, bmax, gap_max, ex, es, et):
 
 
 @njit(cache=True, nogil=True)
-def _event_runs(feat, y, t_abs, t_rel, block, gap_max, bmax, ex, es, et, cnt, rs, re, rc, link, edge, left, right):
+def _event_runs(feat, noise, y, t_rel, block, gap_max, bmax, ex, es, et, cnt, rs, re, rc, link, edge, left, right):
     """Two-shot stripes of row y from the zero crossings of each channel's difference.
 
     A stripe is the interval between two consecutive sign changes (of any channel) while every
@@ -273,12 +292,9 @@ def _event_runs(feat, y, t_abs, t_rel, block, gap_max, bmax, ex, es, et, cnt, rs
     W = feat.shape[1]
     m = feat.shape[2]
     nb = (W + block - 1) // block
-    thr = np.empty(2, np.float32)
-    thr[0] = t_abs
-    thr[1] = t_rel
     for c in range(m):
         _block_extrema(feat, y, c, block, nb, bmax[c], bmax[m], True)
-        cnt[c] = _sign_events(feat, y, c, thr, block, nb, bmax[c], gap_max, ex[c], es[c], et[c])
+        cnt[c] = _sign_events(feat, noise, y, c, t_rel, block, nb, bmax[c], gap_max, ex[c], es[c], et[c])
     ptr = np.zeros(3, np.int64)
     sign = np.zeros(3, np.int64)
     nr = 0
@@ -491,8 +507,8 @@ def _label_row(
                 continue
             shift = best_q * period * sw
         # pixels of the end stripes lie within one stripe of the outer edges; beyond is a guess
-        lo_v = nv[0] - sw if edges_mode else nv[0] - 0.5 * sw
-        hi_v = nv[nn - 1] + sw if edges_mode else nv[nn - 1] + 0.5 * sw
+        lo_v = nv[0] - END_EXT * sw if edges_mode else nv[0] - 0.5 * sw
+        hi_v = nv[nn - 1] + END_EXT * sw if edges_mode else nv[nn - 1] + 0.5 * sw
         for xx in range(xa, xb + 1):
             if colrow[xx] < lo_v or colrow[xx] > hi_v:
                 continue
@@ -524,7 +540,7 @@ def label_rows(
     edges_mode,
     min_frac,
     events,
-    t_abs,
+    noise,
     t_rel,
     block,
     smooth,
@@ -567,7 +583,7 @@ def label_rows(
     for y in range(H):
         if events:
             nr = _event_runs(
-                feat, y, t_abs, t_rel, block, gap_max, bmax, ex, es, et, cnt, rs, re, rc, link, edge, left, right
+                feat, noise, y, t_rel, block, gap_max, bmax, ex, es, et, cnt, rs, re, rc, link, edge, left, right
             )
         else:
             nr = _pixel_runs(code, feat, wts, link_ok, y, gap_max, rs, re, rc, link, edge, left, right)

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from app.decode import kernels
-from app.decode.colour import channel_rows, unmixing_matrix
+from app.decode.colour import channel_rows, linearisation, unmixing_matrix
 from app.decode.stripemap import StripeMap
 from app.decode.windows import LabelParams, WindowSpec, label, window_lookup
 from app.errors import InputError
@@ -22,10 +22,10 @@ from app.errors import InputError
 
 @dataclass(frozen=True)
 class TwoShotParams:
-    t_abs: float = 6.0  # noise floor of |d| in 8-bit camera units (scaled by 257 for 16-bit frames)
+    t_abs: float = 2.0  # noise floor of |d| in raw 8-bit camera steps (carried through the response slope)
     t_rel: float = 0.2  # |d| must reach this share of the channel's local amplitude
     block: int = 8  # pixels per block of the local-amplitude estimate
-    t_rel_edges: float = 0.08  # event mode: a sign (either side of a zero crossing) needs this share
+    t_rel_edges: float = 0.03  # event mode: a sign (either side of a zero crossing) needs this share
     label: LabelParams = field(default_factory=lambda: LabelParams(events=True))
 
 
@@ -60,25 +60,44 @@ class TwoShotDecoder:
         color_mixing: np.ndarray | None = None,
         column_range: tuple[np.ndarray, np.ndarray] | None = None,
         params: TwoShotParams | None = None,
+        camera_gamma: float = 1.0,
+        camera_response: np.ndarray | None = None,
     ) -> None:
         self.params = params or TwoShotParams()
         self.spec = two_shot_spec(pattern_params, proj_width)
         self.channels = str(pattern_params["channels"])
         self.unmix = channel_rows(unmixing_matrix(color_mixing), self.channels)
         self.column_range = column_range
+        self.camera_gamma = camera_gamma
+        self.camera_response = camera_response
+        self._luts: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+    def luts(self, dtype: np.dtype) -> tuple[np.ndarray, np.ndarray]:
+        levels = 65536 if dtype == np.uint16 else 256
+        if levels not in self._luts:
+            resp = self.camera_response
+            if resp is not None and np.asarray(resp).shape[-1] != levels:
+                resp = None
+            self._luts[levels] = linearisation(levels, self.camera_gamma, resp)
+        return self._luts[levels]
 
     def classify(self, frame1: np.ndarray, frame2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per-pixel codes (-1 = none) and the unmixed differences."""
         if frame1.shape != frame2.shape or frame1.ndim != 3 or frame1.shape[2] != 3:
             raise InputError(f"frames of a pair differ in size or are not RGB: {frame1.shape} vs {frame2.shape}")
+        if frame1.dtype not in (np.uint8, np.uint16) or frame2.dtype != frame1.dtype:
+            raise InputError(f"frames must both be uint8 or uint16 RGB, found {frame1.dtype} and {frame2.dtype}")
         H, W = frame1.shape[:2]
-        scale = 257.0 if frame1.dtype == np.uint16 else 1.0
+        m = self.unmix.shape[0]
         code = np.empty((H, W), np.int8)
-        feat = np.empty((H, W, self.unmix.shape[0]), np.float32)
+        feat = np.empty((H, W, m), np.float32)
+        noise = np.empty((H, W, m), np.float32)
+        lin, dlin = self.luts(frame1.dtype)
         p = self.params
         kernels.twoshot_classify(
-            frame1, frame2, self.unmix, np.float32(p.t_abs * scale), np.float32(p.t_rel), p.block, code, feat
+            frame1, frame2, lin, dlin, self.unmix, np.float32(p.t_abs), np.float32(p.t_rel), p.block, code, feat, noise
         )
+        self._noise = noise
         return code, feat
 
     def decode(self, frame1: np.ndarray, frame2: np.ndarray, reversed_order: bool = False) -> StripeMap:
@@ -87,5 +106,4 @@ class TwoShotDecoder:
             frame1, frame2 = frame2, frame1
         code, feat = self.classify(frame1, frame2)
         p = self.params
-        scale = 257.0 if frame1.dtype == np.uint16 else 1.0
-        return label(code, feat, self.spec, p.label, self.column_range, (p.t_abs * scale, p.t_rel_edges, p.block))
+        return label(code, feat, self.spec, p.label, self.column_range, self._noise, p.t_rel_edges, p.block)

@@ -56,9 +56,11 @@ def label(
     spec: WindowSpec,
     params: LabelParams,
     column_range: tuple[np.ndarray, np.ndarray] | None,
-    thresholds: tuple[float, float, int] = (0.0, 0.0, 8),
+    noise: np.ndarray | None = None,
+    t_rel: float = 0.0,
+    block: int = 8,
 ) -> StripeMap:
-    """Identify stripes row by row; thresholds (t_abs, t_rel, block) apply to the event mode."""
+    """Identify stripes row by row; noise (per pixel and channel), t_rel and block feed the event mode."""
     H, W = code.shape
     col = np.full((H, W), np.nan, np.float32)
     chain = np.full((H, W), -1, np.int32)
@@ -82,9 +84,9 @@ def label(
         params.edges,
         params.min_frac,
         params.events,
-        np.float32(thresholds[0]),
-        np.float32(thresholds[1]),
-        int(thresholds[2]),
+        noise if noise is not None else np.zeros((1, 1, 1), np.float32),
+        np.float32(t_rel),
+        int(block),
         params.smooth,
         col,
         chain,
