@@ -268,13 +268,11 @@ class GenICamCamera:
 
         with self._lock:
             deadline = time.monotonic() + timeout_s
-            raw = None
+            held: list[Any] = []  # the one buffer we own at any moment; queued back in `finally`
             try:
-                raw = self._fetch(deadline)
-                skipped = 0
-                if self.policy == "newest":
-                    raw, skipped = self._newest(raw)
-                frame = self._to_frame(raw, skipped)
+                held.append(self._fetch(deadline))
+                skipped = self._newest(held) if self.policy == "newest" else 0
+                frame = self._to_frame(held[0], skipped)
             except SlscanError:
                 raise
             except (GenericException, IndexError, AttributeError, RuntimeError) as exc:
@@ -285,8 +283,8 @@ class GenICamCamera:
                     f"{self.device} stopped answering ({_msg(exc)}): check cable and power, then reopen it"
                 ) from None
             finally:
-                if raw is not None:
-                    _queue(raw)
+                if held:
+                    _queue(held[0])
             return frame
 
     def _fetch(self, deadline: float) -> Any:
@@ -309,28 +307,32 @@ class GenICamCamera:
                 continue
             return raw
 
-    def _newest(self, raw: Any) -> tuple[Any, int]:
-        """Drain the complete buffers already waiting, keep the last one, count the skipped."""
+    def _newest(self, held: list[Any]) -> int:
+        """Swap held[0] for the newest complete buffer already waiting; return how many were skipped.
+
+        Bounded by the number of buffers, so a producer faster than the drain cannot keep us here.
+        """
         ds = self._ia.data_streams[0].module
         skipped = 0
-        while True:
+        for _ in range(2 * max(1, int(getattr(self._ia, "num_buffers", self.buffers) or self.buffers))):
             try:
                 waiting = ds.num_awaiting_delivery
             except Exception:
                 waiting = 1  # unknown: ask once more with a short timeout
             if waiting <= 0:
-                return raw, skipped
+                break
             nxt = self._ia.try_fetch(timeout=0.002, is_raw=True)
             if nxt is None:
-                return raw, skipped
+                break
             if not nxt.is_complete():
                 self.stats.incomplete += 1
                 _queue(nxt)
                 continue
-            _queue(raw)
-            raw = nxt
+            old, held[0] = held[0], nxt
+            _queue(old)
             skipped += 1
             self.stats.skipped += 1
+        return skipped
 
     def _to_frame(self, raw: Any, skipped: int = 0) -> Frame:
         w, h = _get(raw, "width") or self.settings_now["width"], _get(raw, "height") or self.settings_now["height"]

@@ -197,3 +197,26 @@ def test_stop_then_grab_and_close_twice(fake):
         cam.grab(timeout_s=0.1)
     cam.close()
     cam.close()
+
+
+def test_newest_drain_is_bounded_against_a_runaway_producer(fake):
+    """A producer that always has another buffer waiting cannot keep grab() draining forever."""
+    cam, ia = fake(buffers=4)
+    s = ia.stream
+    counter = iter(range(1, 10**6))
+
+    def endless(*, timeout, is_raw):
+        return Raw(s, next(counter), mono(1))
+
+    ia.try_fetch = endless
+    type(s).num_awaiting_delivery = property(lambda self: 1)
+    try:
+        cam.start()
+        t = time.monotonic()
+        f = cam.grab(timeout_s=1)
+        assert time.monotonic() - t < 0.5
+        assert f.frame_id == 9 and cam.stats.skipped == 8  # 2 x 4 buffers at most
+        assert s.queued == list(range(1, 10))  # the 8 skipped, then the returned frame's own buffer
+        cam.close()
+    finally:
+        type(s).num_awaiting_delivery = property(lambda self: len(self.waiting))
