@@ -1,0 +1,110 @@
+"""Gray-code decoder (multi-shot reference, and the correspondences calibration uses).
+
+Frames per `app.patterns.graycode_patterns`: white, black, then for columns and then rows each bit
+(MSB first) and its inverse. A pixel is valid where white - black is clearly above noise. Each bit
+is `pattern > inverse` (robust to albedo and ambient light). Gray code moves the position by one
+at any single bit error on a stripe edge, so there is no wrong-by-much value to guard against.
+
+Sub-pixel: wherever the integer position steps by one between two neighbouring pixels, the
+boundary q + 0.5 lies at the zero crossing of (pattern - inverse) of the one bit that flips between
+q and q+1; positions are interpolated linearly between such boundaries along the row (columns)
+or the column (rows).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from app.decode.stripemap import StripeMap
+from app.errors import InputError
+
+
+def _grey(img: np.ndarray) -> np.ndarray:
+    g = img.astype(np.float32).sum(axis=2)
+    return g / 257.0 if img.dtype == np.uint16 else g
+
+
+def _subpixel(p: np.ndarray, valid: np.ndarray, diffs: np.ndarray) -> np.ndarray:
+    """p (H, W) integer positions along axis 1; diffs (nbits, H, W) with diffs[b] = bit b's pattern - inverse."""
+    H, W = p.shape
+    out = np.where(valid, p.astype(np.float32), np.nan).astype(np.float32)
+    dp = p[:, 1:] - p[:, :-1]
+    trans = valid[:, :-1] & valid[:, 1:] & (np.abs(dp) == 1)
+    ys, xs = np.nonzero(trans)
+    q = np.minimum(p[ys, xs], p[ys, xs + 1])
+    lowbit = (q + 1) & -(q + 1)  # the one Gray bit that flips between q and q+1
+    bit = np.log2(lowbit).astype(np.int64)
+    dl = diffs[bit, ys, xs]
+    dr = diffs[bit, ys, xs + 1]
+    ok = np.sign(dl) != np.sign(dr)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xz = np.where(ok, xs + dl / (dl - dr), xs + 0.5)
+    val = q + 0.5
+    for y in np.unique(ys):
+        sel = ys == y
+        nx, nv = xz[sel], val[sel]
+        order = np.argsort(nx)
+        nx, nv = nx[order], nv[order]
+        if len(nx) < 2:
+            continue
+        xr = np.arange(W, dtype=np.float64)
+        # interpolate only between consecutive boundaries (one position apart, a few pixels apart)
+        seg = np.clip(np.searchsorted(nx, xr) - 1, 0, len(nx) - 2)
+        a, b = nx[seg], nx[seg + 1]
+        va, vb = nv[seg], nv[seg + 1]
+        good = (np.abs(vb - va) == 1) & (b - a < 8) & (xr >= a) & (xr <= b)
+        interp = va + (xr - a) / np.maximum(b - a, 1e-6) * (vb - va)
+        row = out[y]
+        use = good & valid[y] & (np.abs(interp - p[y]) <= 1.0)
+        row[use] = interp[use]
+    return out
+
+
+def decode_graycode(frames: list[np.ndarray], params: dict, kind: str = "column", t_valid: float = 15.0) -> np.ndarray:
+    """Sub-pixel projector column (kind='column') or row ('row') per camera pixel, NaN = none.
+
+    t_valid: minimum white - black, summed over R, G, B, in 8-bit steps.
+    """
+    roles = params["frames"]
+    if len(frames) != len(roles):
+        raise InputError(f"Gray code needs {len(roles)} frames, got {len(frames)}")
+    shape = frames[0].shape
+    for f in frames:
+        if f.shape != shape:
+            raise InputError(f"Gray-code frames differ in size: {f.shape[:2]} vs {shape[:2]}")
+    idx = {(r["kind"], r.get("bit"), r.get("inverse", False)): i for i, r in enumerate(roles)}
+    white = _grey(frames[idx[("white", None, False)]])
+    black = _grey(frames[idx[("black", None, False)]])
+    valid = (white - black) > t_valid
+    nbits = int(params[f"{kind}_bits"])
+    gray = np.zeros(shape[:2], np.int64)
+    diffs = np.empty((nbits, *shape[:2]), np.float32)
+    for b in range(nbits):
+        d = _grey(frames[idx[(kind, b, False)]]) - _grey(frames[idx[(kind, b, True)]])
+        diffs[b] = d
+        gray |= (d > 0).astype(np.int64) << b
+    p = gray.copy()
+    shift = gray >> 1
+    while shift.any():
+        p ^= shift
+        shift >>= 1
+    if kind == "row":
+        return _subpixel(p.T.copy(), valid.T.copy(), np.ascontiguousarray(diffs.transpose(0, 2, 1))).T.copy()
+    return _subpixel(p, valid, diffs)
+
+
+class GrayCodeDecoder:
+    """Columns from a Gray-code frame set, masked to the depth range's columns when given."""
+
+    def __init__(self, pattern_params: dict, column_range: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+        self.params = pattern_params
+        self.shots = len(pattern_params["frames"])
+        self.column_range = column_range
+
+    def decode(self, frames: list[np.ndarray]) -> StripeMap:
+        col = decode_graycode(frames, self.params, "column")
+        if self.column_range is not None:
+            lo, hi = self.column_range
+            col[~((col >= lo) & (col <= hi))] = np.nan
+        conf = np.isfinite(col).astype(np.float32)
+        return StripeMap(col, conf, stripe_width=1, period=0)
