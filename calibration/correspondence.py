@@ -13,7 +13,6 @@ def decode_projector_maps(frames: list[np.ndarray], patterns_meta: dict) -> tupl
     """(column, row) float arrays (H, W), NaN where the Gray code did not decode."""
     from app.decode import graycode  # lazy: the decoder package pulls in numba kernels
 
-    result = graycode.decode_graycode(frames, patterns_meta)
-    column = np.asarray(result.column, np.float64)
-    row = np.asarray(result.row, np.float64)
-    return column, row
+    column = graycode.decode_graycode(frames, patterns_meta, "column")
+    row = graycode.decode_graycode(frames, patterns_meta, "row")
+    return np.asarray(column, np.float64), np.asarray(row, np.float64)
