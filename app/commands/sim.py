@@ -41,8 +41,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--camera-size", metavar="WxH", help="camera resolution (default 640x480)")
     r.add_argument("--cycles", type=int, default=1, help="pattern cycles to render (default 1)")
     r.add_argument("--ideal", action="store_true", help="no noise, blur, crosstalk, ambient, gamma or shading")
-    r.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
-    r.add_argument("--bit-depth", type=int, choices=(8, 16), default=8, help="camera output bits (default 8)")
+    r.add_argument("--seed", type=int, help="noise seed (default 0)")
+    r.add_argument("--bit-depth", type=int, choices=(8, 16), help="camera output bits (default 8)")
     r.add_argument(
         "--set",
         action="append",
@@ -95,8 +95,10 @@ def run_render(args: argparse.Namespace) -> int:
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise InputError(f"{out}: already exists; a dump is never overwritten (choose another --out)")
     overrides = parse_overrides(args.set)
-    overrides["seed"] = args.seed
-    overrides["bit_depth"] = args.bit_depth
+    if args.seed is not None:
+        overrides["seed"] = args.seed
+    if args.bit_depth is not None:
+        overrides["bit_depth"] = args.bit_depth
     if args.camera_size:
         overrides["camera_size"] = parse_size(args.camera_size)
     rig = VirtualRig.from_preset(args.scene, ideal=args.ideal, **overrides)
