@@ -26,7 +26,7 @@ def _grey(img: np.ndarray) -> np.ndarray:
 
 def _subpixel(p: np.ndarray, valid: np.ndarray, diffs: np.ndarray) -> np.ndarray:
     """p (H, W) integer positions along axis 1; diffs (nbits, H, W) with diffs[b] = bit b's pattern - inverse."""
-    H, W = p.shape
+    W = p.shape[1]
     out = np.where(valid, p.astype(np.float32), np.nan).astype(np.float32)
     dp = p[:, 1:] - p[:, :-1]
     trans = valid[:, :-1] & valid[:, 1:] & (np.abs(dp) == 1)

@@ -1,0 +1,133 @@
+"""`slscan decode DUMP --out OUT`: decode every complete frame set of a dump to depth, cloud and stripes."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import warnings
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+from app.decode.pipeline import EmptyResultWarning, FrameSetDecoder
+from app.dump import Dump, read_dump
+from app.errors import InputError
+from app.export import depth_preview, stripe_colours, write_depth_png16, write_depth_tiff, write_ply, write_png
+from app.framesets import group_frame_sets
+from app.fsutil import atomic_directory
+from calibration.model import Calibration
+
+HELP = "decode a frame dump offline: depth TIFF, PLY cloud and stripe PNG per frame set"
+
+EPILOG = """\
+examples:
+  slscan decode rec/ --out out/                     # calibration and depth range from the dump
+  slscan decode rec/ --out out/ --calibration cal.yaml --workers 2 --png16 --preview
+
+Frame sets come from the frames' pattern tags: a two-shot set is two frames with consecutive
+frame_id tagged {0, 1} in either order (pairs slide: 1-2, 2-3, ...); a gap or a wrong tag is never
+decoded. Without a calibration only the stripe PNGs are written.
+"""
+
+_STATE: dict = {}
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "decode", help=HELP, description=HELP, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    p.add_argument("dump", metavar="DUMP", help="frame dump folder (format slscan-dump v1)")
+    p.add_argument("--out", required=True, metavar="OUT", help="output folder (must not exist or be empty)")
+    p.add_argument("--calibration", metavar="FILE", help="calibration YAML (default: the dump's own)")
+    p.add_argument("--workers", type=int, default=0, metavar="N", help="processes (default: all cores)")
+    p.add_argument("--disjoint", action="store_true", help="two-shot: disjoint pairs (1-2, 3-4) instead of sliding")
+    p.add_argument("--png16", action="store_true", help="also write depth_NNNNNN.png (16-bit, 0.1 mm units)")
+    p.add_argument("--preview", action="store_true", help="also write preview_NNNNNN.png (colourised depth)")
+    p.set_defaults(func=run)
+
+
+def _init(folder: str, scheme: str, meta: dict, cal: Calibration | None, rng: tuple | None) -> None:
+    warnings.simplefilter("ignore", EmptyResultWarning)
+    _STATE["dump"] = read_dump(folder)
+    _STATE["decoder"] = FrameSetDecoder(scheme, meta, cal, rng)
+    _STATE["range"] = rng
+
+
+def _work(job: tuple[int, tuple[int, ...], str, bool, bool]) -> tuple[int, int]:
+    n, indices, out, png16, preview = job
+    dump: Dump = _STATE["dump"]
+    dec: FrameSetDecoder = _STATE["decoder"]
+    frames = [dump.load_frame(i) for i in indices]
+    where = ", ".join(str(dump.folder / dump.frames[i].file) for i in indices)
+    res = dec.decode(frames, where=where)
+    o = Path(out)
+    write_png(o / f"stripes_{n:06d}.png", stripe_colours(res.stripes.stripe))
+    if res.depth is not None:
+        write_depth_tiff(o / f"depth_{n:06d}.tiff", res.depth)
+        write_ply(o / f"cloud_{n:06d}.ply", res.cloud)
+        if png16:
+            write_depth_png16(o / f"depth_{n:06d}.png", res.depth)
+        if preview:
+            write_png(o / f"preview_{n:06d}.png", depth_preview(res.depth, _STATE["range"]))
+    return n, int(res.stripes.valid.sum())
+
+
+def run(args: argparse.Namespace) -> int:
+    dump = read_dump(args.dump)
+    meta = dump.patterns_meta()
+    if meta["scheme"] != dump.scheme:
+        raise InputError(f"{dump.folder}: dump scheme {dump.scheme!r} but patterns.yaml says {meta['scheme']!r}")
+    cal = Calibration.load(args.calibration) if args.calibration else dump.calibration()
+    rng = dump.depth_range_mm()
+    n_patterns = len(meta["images"])
+    tags = [(f.frame_id, f.pattern) for f in dump.frames]
+    sets, stats = group_frame_sets(tags, dump.scheme, n_patterns, sliding=not args.disjoint)
+    if not sets:
+        raise InputError(
+            f"{dump.folder}: no complete {dump.scheme} frame set among {len(tags)} frame(s) "
+            f"(needs {n_patterns} consecutive frames tagged 0..{n_patterns - 1})"
+        )
+    # Fail early, in this process, on the first set (sizes, calibration), with a one-line error.
+    warnings.simplefilter("ignore", EmptyResultWarning)
+    _init(str(dump.folder), dump.scheme, meta, cal, rng)
+    workers = args.workers or os.cpu_count() or 1
+    empty = 0
+    with atomic_directory(args.out) as tmp:
+        jobs = [(n, s.indices, str(tmp), args.png16, args.preview) for n, s in enumerate(sets)]
+        first = _work(jobs[0])
+        empty += first[1] == 0
+        done = 1
+        _progress(done, len(jobs))
+        if len(jobs) > 1:
+            if workers > 1:
+                with ProcessPoolExecutor(
+                    workers, initializer=_init, initargs=(str(dump.folder), dump.scheme, meta, cal, rng)
+                ) as ex:
+                    for _, nvalid in ex.map(_work, jobs[1:], chunksize=2):
+                        empty += nvalid == 0
+                        done += 1
+                        _progress(done, len(jobs))
+            else:
+                for job in jobs[1:]:
+                    empty += _work(job)[1] == 0
+                    done += 1
+                    _progress(done, len(jobs))
+    if sys.stderr.isatty():
+        print(file=sys.stderr)
+    if empty:
+        print(
+            f"slscan decode: warning: {empty} frame set(s) decoded to an empty depth map (dark or unlit scene)",
+            file=sys.stderr,
+        )
+    skipped = (
+        f", {stats.gaps} frame_id gap(s), {stats.bad_tags} bad tag(s) skipped" if stats.gaps or stats.bad_tags else ""
+    )
+    print(f"decoded {len(sets)} {dump.scheme} frame set(s) from {len(tags)} frames to {args.out}{skipped}")
+    return 0
+
+
+def _progress(done: int, total: int) -> None:
+    if total >= 8 and sys.stderr.isatty():
+        width = 30
+        fill = int(width * done / total)
+        print(f"\r[{'#' * fill}{'.' * (width - fill)}] {done}/{total} frame sets", end="", file=sys.stderr, flush=True)

@@ -1,0 +1,105 @@
+"""One frame set -> stripe map -> depth map and point cloud, for any scheme (used offline and live)."""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from app.decode.colour import camera_gamma_of
+from app.decode.graycode import GrayCodeDecoder
+from app.decode.oneshot import OneShotDecoder
+from app.decode.stripemap import StripeMap
+from app.decode.twoshot import TwoShotDecoder
+from app.errors import InputError
+from app.triangulate import PointCloud, Triangulator
+from calibration.model import Calibration
+
+DEFAULT_DEPTH_RANGE_MM = (100.0, 5000.0)
+
+
+class EmptyResultWarning(UserWarning):
+    """A frame set in which nothing could be decoded (black, empty or unlit scene)."""
+
+
+@dataclass
+class Result:
+    stripes: StripeMap
+    depth: np.ndarray | None  # float32 mm, 0 = none; None without calibration
+    cloud: PointCloud | None
+    texture: np.ndarray  # RGB image to colour the cloud with
+
+
+class FrameSetDecoder:
+    """Everything precomputed once per (patterns, calibration, depth range)."""
+
+    def __init__(
+        self,
+        scheme: str,
+        pattern_meta: dict,
+        calibration: Calibration | None = None,
+        depth_range_mm: tuple[float, float] | None = None,
+    ) -> None:
+        self.scheme = scheme
+        self.calibration = calibration
+        self.triangulator = None
+        column_range = None
+        proj_w = int(pattern_meta["size"][0])
+        mixing = None
+        gamma = 1.0
+        if calibration is not None:
+            if tuple(calibration.projector_size) != tuple(pattern_meta["size"]):
+                raise InputError(
+                    f"calibration projector_size {calibration.projector_size} differs from the patterns' size "
+                    f"{tuple(pattern_meta['size'])}"
+                )
+            self.triangulator = Triangulator(calibration, depth_range_mm or DEFAULT_DEPTH_RANGE_MM)
+            column_range = self.triangulator.column_range
+            mixing = calibration.color_mixing
+            gamma = camera_gamma_of(calibration)
+        if scheme == "two-shot":
+            self.decoder = TwoShotDecoder(pattern_meta, proj_w, mixing, column_range, camera_gamma=gamma)
+        elif scheme == "one-shot":
+            self.decoder = OneShotDecoder(pattern_meta, proj_w, mixing, column_range, camera_gamma=gamma)
+        elif scheme == "graycode":
+            self.decoder = GrayCodeDecoder(pattern_meta, column_range)
+        else:
+            raise InputError(f"unknown scheme {scheme!r}")
+        self.shots = self.decoder.shots
+
+    def check_frames(self, frames: list[np.ndarray], where: str = "frame set") -> None:
+        if len(frames) != self.shots:
+            raise InputError(f"{where}: scheme {self.scheme} needs {self.shots} frames per set, got {len(frames)}")
+        shape = frames[0].shape
+        for f in frames:
+            if f.shape != shape:
+                raise InputError(
+                    f"{where}: frames of one set differ in size ({shape[1]}x{shape[0]} vs {f.shape[1]}x{f.shape[0]})"
+                )
+        if self.calibration is not None:
+            self.calibration.check_camera_size(shape[1], shape[0], where)
+
+    def decode(self, frames: list[np.ndarray], reversed_order: bool = False, where: str = "frame set") -> Result:
+        """frames in pattern order (frames[p] saw pattern p); reversed_order only tells a two-shot pair's timing."""
+        self.check_frames(frames, where)
+        if self.scheme == "two-shot":
+            sm = self.decoder.decode(frames[0], frames[1])
+            texture = ((frames[0].astype(np.uint32) + frames[1]) // 2).astype(frames[0].dtype)
+        elif self.scheme == "one-shot":
+            sm = self.decoder.decode(frames[0])
+            texture = frames[0]
+        else:
+            sm = self.decoder.decode(frames)
+            texture = frames[0]
+        if not sm.valid.any():
+            warnings.warn(
+                f"{where}: nothing decoded (dark, empty or unlit scene): empty depth map",
+                EmptyResultWarning,
+                stacklevel=2,
+            )
+        depth = cloud = None
+        if self.triangulator is not None:
+            depth = self.triangulator.depth(sm.column)
+            cloud = self.triangulator.points(depth, texture)
+        return Result(sm, depth, cloud, texture)
