@@ -21,6 +21,7 @@ devices. Grouping uses `app.framesets.group_frame_sets` on the last frames, so t
 from __future__ import annotations
 
 import dataclasses
+import threading
 import time
 from collections import deque
 from collections.abc import Callable
@@ -123,6 +124,8 @@ class _Accepted:
 # A two-shot frame must differ from its predecessor (the inverse pattern) at least this many times
 # more than from the frame before that (the same pattern): a flip that came late repeats a pattern.
 ALTERNATION_RATIO = 2.0
+# A trigger count at most this far behind the last one (and past the first few) is a late delivery.
+SWAP_WINDOW = 8
 
 
 @dataclass
@@ -142,13 +145,15 @@ class FrameChecker:
     check_content: bool = True
     # Replay: the frames carry tags checked when they were recorded (no projector, no flip log).
     device_tags: bool = False
-    # Two-shot: check from the pixels that consecutive frames alternate (catches a late flip that
-    # left no trace in any counter). A pair then needs three consecutive frames after a break.
+    # Check from the pixels that each frame differs from its predecessor more than from the frame
+    # of the same pattern one cycle earlier (catches a late flip that left no trace in any counter).
+    # A set then needs its frames' predecessors of one cycle before: sets start one cycle later.
     check_alternation: bool = False
     stats: CaptureStats = field(default_factory=CaptureStats)
 
     def __post_init__(self) -> None:
-        self._history: deque[_Accepted] = deque(maxlen=max(3, self.n_patterns))
+        self._history: deque[_Accepted] = deque(maxlen=max(2, self.n_patterns))
+        self._refs: dict[int, tuple[int, np.ndarray]] = {}  # pattern -> (tick, sample) of its last frame
         self._trigger_base: int | None = 0  # tick of trigger count 1; None = waiting for an anchor
         self._id_base: int | None = None  # tick = frame_id - _id_base when no trigger count
         self._last_trigger: int | None = None
@@ -195,15 +200,16 @@ class FrameChecker:
         st = self.stats
         st.frames += 1
         # Counter resets: the trigger box rebooted (count back to <= last) or the camera restarted.
-        if frame.trigger_count is not None:
-            if self._last_trigger is not None and frame.trigger_count <= self._last_trigger:
-                if frame.trigger_count == self._last_trigger and frame.frame_id == self._last_id:
-                    return self._refuse("duplicates", f"frame {frame.frame_id} received twice", break_pair=False)
+        # A count a little behind a large last count is a frame delivered late (a swap), not a reset.
+        if frame.trigger_count is not None and self._last_trigger is not None:
+            back = self._last_trigger - frame.trigger_count
+            if back == 0 and frame.frame_id == self._last_id:
+                return self._refuse("duplicates", f"frame {frame.frame_id} received twice", break_pair=False)
+            if back >= 0 and (back > SWAP_WINDOW or frame.trigger_count <= SWAP_WINDOW):
                 # The box reset: this frame belongs to a schedule the loop has not re-made yet.
                 self._last_trigger = frame.trigger_count
                 self._last_id = frame.frame_id
                 return self._refuse("untracked", "trigger counter went back (box reset?)")
-            self._last_trigger = frame.trigger_count
         prev_id = self._last_id
         if prev_id is not None:
             if frame.frame_id == prev_id:
@@ -216,7 +222,12 @@ class FrameChecker:
                     self._last_id = frame.frame_id
                     return self._refuse("untracked", "camera frame counter restarted: waiting to re-anchor")
                 return self._refuse("out_of_order", f"frame {frame.frame_id} arrived after frame {prev_id}")
+            if frame.frame_id > prev_id + 1:
+                st.dropped += frame.frame_id - prev_id - 1  # frames the camera never delivered
+                self._history.clear()
         self._last_id = frame.frame_id
+        if frame.trigger_count is not None:
+            self._last_trigger = frame.trigger_count
         if self.check_content:
             sample = _content_sample(frame.image)
             if sample == self._last_sample:
@@ -241,11 +252,7 @@ class FrameChecker:
         st.tagged += 1
         if self._history:
             last = self._history[-1]
-            gap = frame.frame_id - last.frame.frame_id
-            if gap > 1:
-                st.dropped += gap - 1
-                self._history.clear()
-            elif tick != last.tick + 1:
+            if frame.frame_id != last.frame.frame_id + 1 or tick != last.tick + 1:
                 # ids consecutive but ticks not: the two counters disagree; trust neither for a pair.
                 self._history.clear()
         acc = _Accepted(tagged, tick)
@@ -253,15 +260,17 @@ class FrameChecker:
             acc.sample = _alternation_sample(frame.image)
             acc.verified = False
             h = self._history
-            if len(h) >= 2 and h[-1].tick == tick - 1 and h[-2].tick == tick - 2:
-                d1 = float(np.mean(np.abs(acc.sample - h[-1].sample)))  # type: ignore[operator]
-                d2 = float(np.mean(np.abs(acc.sample - h[-2].sample)))  # type: ignore[operator]
-                if d1 <= ALTERNATION_RATIO * d2:
+            ref = self._refs.get(shown.pattern)
+            if h and h[-1].tick == tick - 1 and ref is not None and ref[0] == tick - self.n_patterns:
+                d_prev = float(np.mean(np.abs(acc.sample - h[-1].sample)))  # type: ignore[operator]
+                d_same = float(np.mean(np.abs(acc.sample - ref[1])))
+                if d_prev <= ALTERNATION_RATIO * d_same:
                     st.tagged -= 1
                     return self._refuse(
-                        "mistagged", f"frame {frame.frame_id}: its pattern does not alternate with the frame before"
+                        "mistagged", f"frame {frame.frame_id}: its pixels repeat a pattern (a flip came late?)"
                     )
                 acc.verified = True
+            self._refs[shown.pattern] = (tick, acc.sample)
         self._history.append(acc)
         return tagged, self._complete_set(arrival_ns)
 
@@ -270,7 +279,7 @@ class FrameChecker:
         if len(self._history) < need:
             return None
         window = list(self._history)[-need:]
-        if not window[-1].verified:
+        if not all(a.verified for a in window):
             return None
         # Ticks stand in for frame ids: the checks above made both consecutive together.
         tags = [(a.tick, int(a.frame.pattern)) for a in window]  # type: ignore[arg-type]
@@ -343,9 +352,19 @@ class CaptureLoop:
         rate_hz: float = 60.0,
         timeout_s: float = 2.0,
         pace: bool = True,
+        projector_thread: bool | None = None,
         clock: Callable[[], int] = time.monotonic_ns,
     ) -> None:
         self.camera, self.projector, self.trigger = camera, projector, trigger
+        # With a trigger, flips follow the trigger counter on their own thread, so a slow grab or
+        # decode never leaves a tick without its pattern. Not for a projector whose window belongs
+        # to the thread that opened it (pyglet: it has request_stop); there the loop shows inline.
+        if projector_thread is None:
+            projector_thread = projector is not None and trigger is not None and not hasattr(projector, "request_stop")
+        self._use_thread = bool(projector_thread) and projector is not None and trigger is not None
+        self._proj_stop = threading.Event()
+        self._proj_thread: threading.Thread | None = None
+        self._proj_error: BaseException | None = None
         self.scheme = scheme
         self.order = pattern_order(scheme, n_patterns)
         self.rate_hz = rate_hz
@@ -360,7 +379,7 @@ class CaptureLoop:
             n_patterns,
             self.flips,
             device_tags=projector is None,
-            check_alternation=projector is not None and scheme == "two-shot",
+            check_alternation=projector is not None and scheme != "one-shot",
         )
         self.tick = 0  # steps made
         self._deadline = 0
@@ -379,12 +398,32 @@ class CaptureLoop:
         self.checker.anchor_trigger(1)  # trigger count k is tick k
         self._deadline = self.clock()
         self._started = True
+        if self._use_thread:
+            self._proj_stop.clear()
+            self._proj_thread = threading.Thread(target=self._projector_run, name="projector", daemon=True)
+            self._proj_thread.start()
+
+    def _projector_run(self) -> None:
+        """Show the next pattern as soon as the trigger counter moves (polled every millisecond)."""
+        try:
+            self._show_triggered()
+            while not self._proj_stop.is_set():
+                if self._read_counter() != self._count:
+                    self._show_triggered()
+                else:
+                    time.sleep(0.001)
+        except BaseException as exc:  # handed to the acquisition thread at its next step
+            self._proj_error = exc
 
     def step(self) -> LoopEvent:
         """One frame: show, grab, check. Raises CameraTimeoutError if the camera stops sending."""
         if not self._started:
             self.start()
-        if self.trigger is not None and self.projector is not None:
+        if self._proj_error is not None:
+            raise self._proj_error
+        if self._use_thread:
+            pass  # the projector thread keeps the flips going
+        elif self.trigger is not None and self.projector is not None:
             self._show_triggered()
         else:
             self._pace()
@@ -444,17 +483,23 @@ class CaptureLoop:
         self._count = after
 
     def _resync(self) -> None:
-        """The trigger's counter went back (a box that rebooted): forget the schedule, restart it."""
+        """The trigger's counter went back (a box that rebooted): forget the schedule, restart it.
+
+        Frames of the old schedule still in the camera's buffer are refused by the checker (their
+        count goes back or finds no flip), so the checker itself is not touched from here.
+        """
         self.checker.stats.resyncs += 1
         self.flips.clear()
-        self.checker.reset_pairing()
-        self.checker.anchor_trigger(1)
         self.trigger.start(self.rate_hz)  # type: ignore[union-attr]
         self._count = 0
 
     def close(self) -> None:
         """Stop and close every device, even if one of them fails."""
         errors: list[BaseException] = []
+        if self._proj_thread is not None:
+            self._proj_stop.set()
+            self._proj_thread.join(2.0)
+            self._proj_thread = None
         for action in (
             lambda: self.projector.show(None) if self.projector is not None else None,
             lambda: self.trigger.stop() if self.trigger is not None else None,

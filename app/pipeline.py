@@ -303,9 +303,9 @@ class LivePipeline:
                 t1 = time.perf_counter()
                 depth = self.processor.depth(stripes)
                 t2 = time.perf_counter()
-            except (SlscanError, ValueError) as exc:
+            except Exception as exc:  # one bad set (or a decoder bug) must not kill the worker; counted, kept
                 self.stats.failed += 1
-                self.decode_error = str(exc)
+                self.decode_error = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
                 continue
             res = Result(index, fs, stripes, depth, (t1 - t0) * 1e3, (t2 - t1) * 1e3, time.monotonic_ns())
             st = self.stats
