@@ -2,7 +2,8 @@
 
 Timing model (like a hardware-triggered rig): the trigger ticks at rate_hz (in real time, or
 only when `step()` is called in stepped mode, for tests). Each tick exposes one camera frame;
-`frame_id` and `trigger_count` are the tick number (1, 2, ...), so dropped frames show as gaps.
+`frame_id` and `trigger_count` are the tick number (1, 2, ...), so dropped frames show as gaps
+(after an injected trigger reset, `trigger_count` restarts from 1 while `frame_id` goes on).
 The projector's `show(i)` takes effect from the next tick: the frame of tick k shows the
 pattern of the last `show` made while the counter was < k. Frames are rendered when grabbed.
 
@@ -29,7 +30,7 @@ from drivers.sim.rig import PreparedPattern, VirtualRig
 
 CAMERA_FAULTS = ("drop", "duplicate", "swap", "stall", "disappear", "late_flip")
 TRIGGER_FAULTS = ("reset",)
-BUFFER_FRAMES = 4  # like a camera's buffer pool: a consumer further behind loses the oldest frames
+BUFFER_FRAMES = 8  # like a camera's buffer pool: a consumer further behind loses the oldest frames
 
 
 @dataclass
@@ -79,8 +80,18 @@ def parse_faults(spec: object, where: str = "sim.faults") -> list[Fault]:
 class SimBench:
     """The shared state of the three simulated devices: the rig, the clock, the projector's flips."""
 
-    def __init__(self, rig: VirtualRig, stepped: bool = False, faults: Sequence[Fault] = (), seed: int = 0) -> None:
+    def __init__(
+        self,
+        rig: VirtualRig,
+        stepped: bool = False,
+        faults: Sequence[Fault] = (),
+        seed: int = 0,
+        buffer_frames: int = BUFFER_FRAMES,
+    ) -> None:
+        if not (isinstance(buffer_frames, int) and buffer_frames >= 1):
+            raise InputError(f"sim: buffer_frames must be a whole number >= 1, found {buffer_frames!r}")
         self.rig = rig
+        self.buffer_frames = buffer_frames
         self.stepped = stepped
         self.faults = list(faults)
         self.rng = np.random.default_rng(seed + 1000003)
@@ -88,11 +99,12 @@ class SimBench:
         self.rate_hz = 60.0
         self.running = False
         self.t0_ns = 0
-        self.ticks = 0  # stepped mode counter
+        self.ticks = 0  # stepped mode: ticks fired since the bench was made (never reset)
+        self.reset_base = 0  # absolute tick at which the trigger box last reset (its counter restarted)
         self._frozen = 0  # real-time counter while stopped
         self.tick_offset = 0  # trigger reset support
         self.patterns: list[PreparedPattern] = []
-        self.flips: list[tuple[int, int | None, int]] = []  # (counter at show, index, host ns)
+        self.flips: list[tuple[int, int | None, int]] = []  # (absolute tick at show, index, host ns)
 
     # -- clock
     def counter(self) -> int:
@@ -100,6 +112,14 @@ class SimBench:
             return self._counter_locked()
 
     def _counter_locked(self) -> int:
+        """What the trigger box reports: ticks since start (or since its last reset)."""
+        return self._abs_locked() - self.reset_base
+
+    def visible_id(self, tick: int) -> int:
+        """The counter value the box gave absolute tick `tick` (numbering restarts after a reset)."""
+        return tick - self.reset_base if tick > self.reset_base else tick
+
+    def _abs_locked(self) -> int:
         if not self.running:
             return self.ticks if self.stepped else self._frozen
         if self.stepped:
@@ -164,10 +184,9 @@ class SimTrigger:
                 b.ticks += 1
                 for f in b.faults:
                     if f.kind == "reset" and f.fires(b.ticks, b.rng):
-                        b.ticks = 0  # a trigger box that reboots: the counter starts again
-                        b.flips.clear()
+                        b.reset_base = b.ticks  # a trigger box that reboots: its counter starts again at 0
             b.cond.notify_all()
-            return b.ticks
+            return b._counter_locked()
 
     def close(self) -> None:
         self.stop()
@@ -195,13 +214,16 @@ class SimProjector:
         if index is not None and not 0 <= index < len(b.patterns):
             raise InputError(f"sim projector: pattern {index} not loaded ({len(b.patterns)} loaded)")
         with b.cond:
-            b.flips.append((b._counter_locked(), index, time.monotonic_ns()))
+            b.flips.append((b._abs_locked(), index, time.monotonic_ns()))
             if len(b.flips) > 4096:  # keep the history bounded; old entries are never asked for
                 del b.flips[: len(b.flips) - 2048]
 
     @property
     def flips(self) -> list[tuple[int, int | None, int]]:
-        """(trigger counter when shown, pattern index, host ns): index applies from counter + 1."""
+        """(tick count when shown, pattern index, host ns): the index applies from the next tick on.
+
+        Tick counts here never restart (they equal the trigger counter unless the box was reset).
+        """
         with self.bench.cond:
             return list(self.bench.flips)
 
@@ -227,7 +249,8 @@ class SimCamera:
         if self._gone:
             raise DeviceError("sim camera: device disappeared (reopen it)")
         self._started = True
-        self._next_tick = self.bench.counter() + 1
+        with self.bench.cond:
+            self._next_tick = self.bench._abs_locked() + 1
 
     def stop(self) -> None:
         self._started = False
@@ -257,7 +280,9 @@ class SimCamera:
                 del self._truth[k]
         if free_run:  # no trigger: host time, no trigger count
             return Frame(image=image, frame_id=tick, timestamp_ns=time.monotonic_ns(), pattern=None)
-        return Frame(image=image, frame_id=tick, timestamp_ns=b.tick_time_ns(tick), pattern=None, trigger_count=tick)
+        # frame_id: the camera's own exposure counter; trigger_count: the box's (restarts after a reset)
+        count = b.visible_id(tick)
+        return Frame(image=image, frame_id=tick, timestamp_ns=b.tick_time_ns(tick), pattern=None, trigger_count=count)
 
     def grab(self, timeout_s: float = 1.0) -> Frame:
         b = self.bench
@@ -274,12 +299,10 @@ class SimCamera:
                     # free-running without a trigger: expose now with what is shown now
                     tick = self._next_tick
                     break
-                count = b._counter_locked()
-                if count < self._next_tick - 1:  # the trigger counter went back (reset)
-                    self._next_tick = count + 1
+                count = b._abs_locked()
                 if count >= self._next_tick:
-                    if count - self._next_tick >= BUFFER_FRAMES:
-                        skip = count - BUFFER_FRAMES + 1 - self._next_tick
+                    if count - self._next_tick >= b.buffer_frames:
+                        skip = count - b.buffer_frames + 1 - self._next_tick
                         self.dropped += skip
                         self._next_tick += skip
                     tick = self._next_tick
@@ -334,7 +357,7 @@ class SimCamera:
         b = self.bench
         deadline = time.monotonic() + timeout_s
         with b.cond:
-            while b._counter_locked() < tick:
+            while b._abs_locked() < tick:
                 left = deadline - time.monotonic()
                 if left <= 0 or not b.running:
                     return None
@@ -352,7 +375,18 @@ class SimDevices(NamedTuple):
 
 # ----------------------------------------------------------------------------- construction
 
-SIM_KEYS = ("scene", "camera_size", "projector_size", "ideal", "seed", "stepped", "bit_depth", "effects", "faults")
+SIM_KEYS = (
+    "scene",
+    "camera_size",
+    "projector_size",
+    "ideal",
+    "seed",
+    "stepped",
+    "bit_depth",
+    "effects",
+    "faults",
+    "buffer_frames",
+)
 
 
 def make_bench(
@@ -361,10 +395,13 @@ def make_bench(
     stepped: bool = False,
     faults: object = None,
     seed: int = 0,
+    buffer_frames: int = BUFFER_FRAMES,
     **rig_options: object,
 ) -> SimBench:
+    """A rig over a preset plus the devices' shared clock; rig_options as VirtualRig.from_preset."""
+    parsed = parse_faults(faults)  # before the (slow) rig, so a bad fault list fails at once
     rig = VirtualRig.from_preset(scene, ideal=ideal, seed=seed, **rig_options)
-    return SimBench(rig, stepped=stepped, faults=parse_faults(faults), seed=seed)
+    return SimBench(rig, stepped=stepped, faults=parsed, seed=seed, buffer_frames=buffer_frames)
 
 
 def devices_from_bench(bench: SimBench) -> SimDevices:
@@ -407,6 +444,7 @@ def make_sim_rig(config: object) -> SimDevices:
         stepped=bool(sim.get("stepped", False)),
         faults=sim.get("faults"),
         seed=seed,
+        buffer_frames=sim.get("buffer_frames", BUFFER_FRAMES),
         **opts,
     )
     return devices_from_bench(bench)
