@@ -49,7 +49,13 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--frames N and --out DIR are required (or --repair DUMP)")
     if args.frames < 1:
         raise InputError(f"--frames {args.frames}: must be at least 1")
+    from pathlib import Path
+
     from app.commands.live import build_session, describe, open_recorder
+
+    out = Path(args.out)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):  # before opening any device
+        raise InputError(f"{out}: already exists; a dump is never overwritten (choose another --out)")
 
     session = build_session(args.config, scheme=args.scheme)
     recorder = open_recorder(session, args.out, args.png_level)

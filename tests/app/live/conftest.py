@@ -7,7 +7,6 @@ import pytest
 
 from app.commands.live import build_session
 
-
 # 320x240 keeps the per-calibration precomputation short; the bench runs the full 640x480.
 SMALL = {"camera_size": [320, 240]}
 

@@ -1,0 +1,71 @@
+"""Operator mistakes in a rig config: one line naming the file and the key, exit status 2."""
+
+from __future__ import annotations
+
+import pytest
+import yaml
+
+from app.cli import main
+from app.config import DEFAULT_CONFIG
+
+
+def config_with(tmp_path, edit) -> str:
+    data = yaml.safe_load(DEFAULT_CONFIG.read_text())
+    edit(data)
+    path = tmp_path / "rig.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return str(path)
+
+
+CASES = {
+    "unknown camera driver": (lambda d: d["rig"]["camera"].update(driver="nosuchcam"), "'rig.camera.driver'"),
+    "unknown projector driver": (lambda d: d["rig"]["projector"].update(driver="beamer"), "'rig.projector.driver'"),
+    "unknown trigger driver": (lambda d: d["rig"]["trigger"].update(driver="magic"), "'rig.trigger.driver'"),
+    "missing camera": (lambda d: d["rig"].pop("camera"), "missing key 'rig.camera'"),
+    "missing driver": (lambda d: d["rig"]["camera"].pop("driver"), "missing key 'rig.camera.driver'"),
+    "missing rig": (lambda d: d.pop("rig"), "missing key 'rig'"),
+    "bad scheme": (lambda d: d["scheme"].update(name="three-shot"), "'scheme.name'"),
+    "bad rate": (lambda d: d["capture"].update(rate_hz="fast"), "'capture.rate_hz'"),
+    "bad depth range": (lambda d: d.update(depth_range_mm=[900, 100]), "'depth_range_mm'"),
+    "unknown sim key": (lambda d: d["sim"].update(lens="fisheye"), "'sim.lens'"),
+    "real rig without calibration": (
+        lambda d: d["rig"].update(camera={"driver": "v4l2"}, projector={"driver": "pyglet"}, trigger="none"),
+        "missing key 'calibration'",
+    ),
+}
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+@pytest.mark.parametrize("command", ["live", "dump"])
+def test_config_error_is_one_line_naming_file_and_key(tmp_path, capsys, name, command):
+    edit, expected = CASES[name]
+    path = config_with(tmp_path, edit)
+    args = [command, "--config", path, "--frames", "5"]
+    args += ["--headless"] if command == "live" else ["--out", str(tmp_path / "out")]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1, err
+    assert path in err and expected in err, err
+    assert not (tmp_path / "out").exists()
+
+
+def test_missing_config_file_and_cli_exit_status(tmp_path, run_cli):
+    r = run_cli("live", "--headless", "--config", tmp_path / "nope.yaml")
+    assert r.returncode == 2
+    assert r.stderr.strip().count("\n") == 0 and "nope.yaml" in r.stderr and "not found" in r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def test_live_without_display_says_so_in_one_line(monkeypatch, capsys):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    assert main(["live"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--headless" in err
+
+
+def test_dump_refuses_to_overwrite(tmp_path, capsys):
+    (tmp_path / "rec").mkdir()
+    (tmp_path / "rec" / "keep.txt").write_text("mine")
+    assert main(["dump", "--frames", "3", "--out", str(tmp_path / "rec")]) == 2
+    assert "never overwritten" in capsys.readouterr().err
+    assert (tmp_path / "rec" / "keep.txt").read_text() == "mine"

@@ -1,0 +1,168 @@
+"""Recording: a dump written live decodes with nothing else; kill -9 leaves a readable dump;
+a full disk stops recording and keeps what was written; a dump replays through the pipeline."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import numpy as np
+import pytest
+import yaml
+
+from app.cli import main
+from app.commands.live import build_session, open_recorder
+from app.config import DEFAULT_CONFIG
+from app.dump import DumpWriter, read_dump, repair_dump
+from app.imageio import read_float_tiff
+from app.patterns import two_shot_patterns
+from app.pipeline import LivePipeline
+from app.recorder import Recorder
+from drivers.base import Frame
+
+from .conftest import SMALL, depth_agreement
+
+
+def record(session, folder, frames: int, png_level: int = 0):
+    rec = open_recorder(session, folder, png_level)
+    pipe = LivePipeline(lambda: session.make_loop(timeout_s=3.0), None, max_frames=frames, recorder=rec)
+    pipe.start()
+    pipe.wait()
+    stats = rec.close()
+    return pipe, rec, stats
+
+
+def test_dump_written_live_decodes_with_nothing_else(tmp_path, sim_session, capsys):
+    session = build_session(None, sim_overrides=SMALL)
+    pipe, rec, stats = record(session, tmp_path / "rec", frames=24)
+    assert pipe.error is None and rec.message is None
+    assert stats.written == pipe.capture.tagged and stats.lost == 0  # every tagged frame is in the dump
+    dump = read_dump(tmp_path / "rec")
+    assert len(dump.frames) == stats.written
+    # the tags in the dump are what the frames really saw
+    assert all(session.sim.camera.truth(f.frame_id) == f.pattern for f in dump.frames)
+    assert dump.calibration().camera_size == (320, 240) and dump.depth_range_mm() == (400.0, 1200.0)
+    assert main(["decode", str(tmp_path / "rec"), "--out", str(tmp_path / "out")]) == 0
+    depth = read_float_tiff(tmp_path / "out" / "depth_000000.tiff")
+    correct, coverage = depth_agreement(depth, session.sim.rig.ground_truth)
+    assert correct > 0.95 and coverage > 0.25
+
+
+def test_replay_runs_a_dump_through_the_live_pipeline(tmp_path, sim_session):
+    from app.commands.replay import replay_session
+
+    session, processor = sim_session
+    record(build_session(None, sim_overrides=SMALL), tmp_path / "rec", frames=16)
+    replay = replay_session(str(tmp_path / "rec"))
+    results = []
+    pipe = LivePipeline(lambda: replay.make_loop(), processor, on_result=results.append, max_frames=10**9)
+    pipe.start()
+    pipe.wait()
+    assert pipe.error is None  # the end of the dump is a normal end
+    n = len(read_dump(tmp_path / "rec").frames)
+    assert pipe.capture.frames == n and pipe.capture.refused == 0
+    assert pipe.stats.decoded >= 1
+    correct, _ = depth_agreement(pipe.latest.depth, session.sim.rig.ground_truth)
+    assert correct > 0.95
+
+
+def test_full_disk_stops_recording_and_keeps_what_was_written(tmp_path):
+    writer = DumpWriter(tmp_path / "rec", two_shot_patterns((64, 48)))
+    rec = Recorder(writer)
+    rng = np.random.default_rng(1)
+    frames = [Frame(rng.integers(0, 255, (24, 32, 3), np.uint8), i + 1, 1000 * i, pattern=i % 2) for i in range(8)]
+    for f in frames[:3]:
+        rec.put(f)
+    while rec.stats.written < 3:
+        time.sleep(0.01)
+    # the next frame's file is the kernel's /dev/full: writing it fails with ENOSPC, as on a full disk
+    os.symlink("/dev/full", tmp_path / "rec" / "frames" / "000003.tmp.png")
+    for f in frames[3:]:
+        rec.put(f)
+    stats = rec.close()
+    assert stats.written == 3 and stats.not_written == 5
+    assert "disk full" in rec.message and "keeps the 3 frames" in rec.message
+    assert "5 frame(s) NOT recorded" in rec.summary()
+    dump = read_dump(tmp_path / "rec")
+    assert len(dump.frames) == 3
+    assert all(np.array_equal(dump.load_frame(i), frames[i].image) for i in range(3))
+
+
+RECORDER_SCRIPT = textwrap.dedent(
+    """
+    import sys, numpy as np
+    from app.dump import DumpWriter
+    from app.patterns import two_shot_patterns
+    from app.recorder import Recorder
+    from drivers.base import Frame
+    rec = Recorder(DumpWriter(sys.argv[1], two_shot_patterns((64, 48)), png_level=int(sys.argv[2])))
+    rng = np.random.default_rng(0)
+    i = 0
+    while True:
+        while not rec.put(Frame(rng.integers(0, 255, (120, 160, 3), np.uint8), i + 1, 1000 * i, pattern=i % 2)):
+            pass
+        i += 1
+    """
+)
+
+
+@pytest.mark.parametrize("png_level", [0, 1])
+def test_kill_9_at_random_points_leaves_a_readable_dump(tmp_path, png_level):
+    rng = np.random.default_rng(png_level)
+    for k in range(3):
+        folder = tmp_path / f"rec{k}"
+        proc = subprocess.Popen([sys.executable, "-c", RECORDER_SCRIPT, str(folder), str(png_level)])
+        try:
+            deadline = time.monotonic() + 60
+            while time.monotonic() < deadline:
+                idx = folder / "dump.yaml"
+                if idx.is_file() and idx.read_text().count("\n- {") >= 3:
+                    break
+                time.sleep(0.01)
+            time.sleep(float(rng.uniform(0, 0.3)))
+        finally:
+            proc.send_signal(signal.SIGKILL)
+            proc.wait()
+        dump = read_dump(folder)
+        assert len(dump.frames) >= 3
+        assert [f.frame_id for f in dump.frames] == list(range(1, len(dump.frames) + 1))
+        for i in range(len(dump.frames)):
+            assert dump.load_frame(i).shape == (120, 160, 3)
+        report = repair_dump(folder)
+        assert report.frames == len(dump.frames)
+        assert not list((folder / "frames").glob("*.tmp.png"))
+        again = read_dump(folder)
+        assert len(again.frames) == len(dump.frames) and again.dropped_tail == 0
+        assert (folder / "dump.yaml").read_text().endswith("\n")
+
+
+def test_kill_9_of_slscan_dump_leaves_a_readable_dump(tmp_path):
+    data = yaml.safe_load(DEFAULT_CONFIG.read_text())
+    data["sim"]["camera_size"] = [320, 240]
+    cfg = tmp_path / "small.yaml"
+    cfg.write_text(yaml.safe_dump(data))
+    out = tmp_path / "rec"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "app.cli", "dump", "--config", str(cfg), "--frames", "100000", "--out", str(out)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        deadline = time.monotonic() + 90
+        while time.monotonic() < deadline:
+            idx = out / "dump.yaml"
+            if idx.is_file() and idx.read_text().count("\n- {") >= 6:
+                break
+            time.sleep(0.02)
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    dump = read_dump(out)
+    assert len(dump.frames) >= 6
+    for i in range(len(dump.frames)):
+        assert dump.load_frame(i).shape == (240, 320, 3)
+    assert dump.calibration() is not None
