@@ -25,7 +25,7 @@ import numpy as np
 
 from app.capture import CaptureLoop, CaptureStats, FrameSet
 from app.decode.stripemap import StripeMap
-from app.errors import InputError, SlscanError
+from app.errors import SlscanError
 from app.patterns import PatternSet
 from app.recorder import Recorder
 from calibration.model import Calibration
@@ -35,21 +35,23 @@ from drivers.base import Frame
 
 
 class Processor:
-    """FrameSet -> (StripeMap, depth): the scheme's decoder and the triangulator, built once."""
+    """FrameSet -> (StripeMap, depth): issue 4's FrameSetDecoder, built once, with the two stages timed apart."""
 
     def __init__(
         self, patterns: PatternSet, calibration: Calibration, depth_range_mm: tuple[float, float] | None
     ) -> None:
-        from app.triangulate import Triangulator
+        from app.decode.pipeline import FrameSetDecoder
 
         self.scheme = patterns.scheme
         self.patterns = patterns
         self.calibration = calibration
-        self.triangulator = Triangulator(calibration, depth_range_mm or (100.0, 5000.0))
-        self.decoder = _make_decoder(patterns, calibration, self.triangulator.column_range)
+        meta = {**patterns.params, "scheme": patterns.scheme, "size": list(patterns.size)}
+        self.frameset_decoder = FrameSetDecoder(patterns.scheme, meta, calibration, depth_range_mm)
+        self.triangulator = self.frameset_decoder.triangulator
+        self.decoder = self.frameset_decoder.decoder
 
     def decode(self, images: tuple[np.ndarray, ...], reversed_order: bool = False) -> StripeMap:
-        """images[p] saw pattern p."""
+        """images[p] saw pattern p (the order in time does not matter to the decoders)."""
         if self.scheme == "two-shot":
             return self.decoder.decode(images[0], images[1])
         if self.scheme == "one-shot":
@@ -58,26 +60,6 @@ class Processor:
 
     def depth(self, stripes: StripeMap) -> np.ndarray:
         return self.triangulator.depth(stripes.column)
-
-
-def _make_decoder(patterns: PatternSet, calibration: Calibration, column_range: tuple[np.ndarray, np.ndarray]):
-    """The decoder of a scheme (app/decode/, issue 4), given the geometry to pick stripe copies."""
-    proj_w = patterns.size[0]
-    mixing = calibration.color_mixing
-    try:
-        if patterns.scheme == "two-shot":
-            from app.decode.twoshot import TwoShotDecoder
-
-            return TwoShotDecoder(patterns.params, proj_w, color_mixing=mixing, column_range=column_range)
-        if patterns.scheme == "one-shot":
-            from app.decode.oneshot import OneShotDecoder
-
-            return OneShotDecoder(patterns.params, proj_w, color_mixing=mixing, column_range=column_range)
-        from app.decode.graycode import GrayCodeDecoder
-
-        return GrayCodeDecoder(patterns.params, patterns.size)
-    except ImportError as exc:
-        raise InputError(f"scheme {patterns.scheme!r}: its decoder is not available ({exc})") from None
 
 
 # ------------------------------------------------------------------------------------ results
