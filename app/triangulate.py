@@ -74,8 +74,8 @@ class Triangulator:
         self,
         calibration: Calibration,
         depth_range_mm: tuple[float, float] = (100.0, 5000.0),
-        max_error_px: float = 0.002,
-        max_nodes: int = 65,
+        max_error_px: float = 0.01,
+        max_nodes: int = 33,
     ) -> None:
         near, far = float(depth_range_mm[0]), float(depth_range_mm[1])
         if not 0 < near < far:
@@ -88,7 +88,6 @@ class Triangulator:
         crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-10)
         und = cv2.undistortPoints(pts, calibration.camera_matrix, calibration.camera_distortion, None, None, None, crit)
         self.ray = und.reshape(h, w, 2).astype(np.float32)  # normalised (x/z, y/z) per pixel
-        self._rvec = cv2.Rodrigues(calibration.R)[0]
         self.w0 = 1.0 / near
         K = 9
         while True:
@@ -110,12 +109,24 @@ class Triangulator:
         self.column_hi = np.maximum(nodes[:, :, 0], nodes[:, :, -1]).astype(np.float32)
 
     def _project_u(self, ray: np.ndarray, w: float) -> np.ndarray:
-        h, wd = ray.shape[:2]
-        z = 1.0 / w
-        X = np.concatenate([ray.reshape(-1, 2).astype(np.float64) * z, np.full((h * wd, 1), z)], axis=1)
+        """Distorted projector column of the points at inverse depth w on the given camera rays."""
         cal = self.calibration
-        uv, _ = cv2.projectPoints(X, self._rvec, cal.T.reshape(3, 1), cal.projector_matrix, cal.projector_distortion)
-        return uv.reshape(h, wd, 2)[:, :, 0]
+        r = ray.astype(np.float64)
+        Rm = cal.R
+        z = 1.0 / w
+        # X_p = R (z * (x, y, 1)) + T
+        X = z * (Rm[0, 0] * r[..., 0] + Rm[0, 1] * r[..., 1] + Rm[0, 2]) + cal.T[0]
+        Y = z * (Rm[1, 0] * r[..., 0] + Rm[1, 1] * r[..., 1] + Rm[1, 2]) + cal.T[1]
+        Z = z * (Rm[2, 0] * r[..., 0] + Rm[2, 1] * r[..., 1] + Rm[2, 2]) + cal.T[2]
+        x = X / Z
+        y = Y / Z
+        k1, k2, p1, p2, k3 = cal.projector_distortion
+        r2 = x * x + y * y
+        radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
+        yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+        K = cal.projector_matrix
+        return K[0, 0] * xd + K[0, 1] * yd + K[0, 2]
 
     def _midpoint_error(self, nodes: np.ndarray, K: int) -> float:
         sub = self.ray[::8, ::8]

@@ -19,6 +19,12 @@ from numba import njit
 END_EXT = 0.5
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _wrap(v, period):
+    """v mod period for 0 <= v < 2 * period (Python's % costs a division per call)."""
+    return v - period if v >= period else v
+
+
 @njit(cache=True, nogil=True)
 def _block_extrema(feat, y, c, block, nb, bmax, bmin, absolute):
     """Per block of `block` pixels along row y: max and min of feat[y, :, c] (or of |feat|)."""
@@ -39,7 +45,7 @@ def _block_extrema(feat, y, c, block, nb, bmax, bmin, absolute):
 
 
 @njit(cache=True, nogil=True)
-def twoshot_classify(f1, f2, lin, dlin, unmix, t_abs, t_rel, block, code, feat, noise):
+def twoshot_classify(f1, f2, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, want_code, code, feat, noise):
     """code[y, x] = bits (1 = channel max in frame 1, i.e. frame2 - frame1 < 0), -1 when unsure.
 
     Raw values are linearised through lin (3, L) (the camera response), then feat[y, x, c] =
@@ -86,15 +92,18 @@ def twoshot_classify(f1, f2, lin, dlin, unmix, t_abs, t_rel, block, code, feat, 
                     a = bmax[c, b - 1]
                 if b + 1 < nb and bmax[c, b + 1] > a:
                     a = bmax[c, b + 1]
-                thr = t_rel * a
-                if thr < noise[y, x, c]:
-                    thr = noise[y, x, c]
+                nz = noise[y, x, c]
                 d = feat[y, x, c]
-                if abs(d) < thr:
-                    ok = False
-                    break
-                if d < 0:
-                    cd |= 1 << c
+                if want_code:
+                    thr = t_rel * a
+                    if thr < nz:
+                        thr = nz
+                    if abs(d) < thr:
+                        ok = False
+                    elif d < 0:
+                        cd |= 1 << c
+                te = t_rel_edge * a
+                noise[y, x, c] = te if te > nz else nz  # the event mode's threshold
             code[y, x] = cd if ok else -1
 
 
@@ -222,7 +231,7 @@ def _pixel_runs(code, feat, wts, link_ok, y, gap_max, rs, re, rc, link, edge, le
 
 
 @njit(cache=True, nogil=True)
-def _sign_events(feat, noise, y, c, t_rel, block, nb, bmax, gap_max, ex, es, et):
+def _sign_events(feat, thr_map, y, c, gap_max, ex, es, et):
     """Events of channel c along row y: 0 = becomes known (sign es), 1 = sign change, 2 = unknown."""
     W = feat.shape[1]
     n = 0
@@ -231,15 +240,7 @@ def _sign_events(feat, noise, y, c, t_rel, block, nb, bmax, gap_max, ex, es, et)
     last_d = 0.0
     for x in range(W):
         d = feat[y, x, c]
-        b = x // block
-        a = bmax[b]
-        if b > 0 and bmax[b - 1] > a:
-            a = bmax[b - 1]
-        if b + 1 < nb and bmax[b + 1] > a:
-            a = bmax[b + 1]
-        thr = t_rel * a
-        if thr < noise[y, x, c]:
-            thr = noise[y, x, c]
+        thr = thr_map[y, x, c]
         s = 1 if d >= thr else (-1 if d <= -thr else 0)
         if s == 0:
             continue
@@ -282,19 +283,16 @@ def _sign_events(feat, noise, y, c, t_rel, block, nb, bmax, gap_max, ex, es, et)
 
 
 @njit(cache=True, nogil=True)
-def _event_runs(feat, noise, y, t_rel, block, gap_max, bmax, ex, es, et, cnt, rs, re, rc, link, edge, left, right):
+def _event_runs(feat, noise, y, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right):
     """Two-shot stripes of row y from the zero crossings of each channel's difference.
 
     A stripe is the interval between two consecutive sign changes (of any channel) while every
     channel has a sign, so a stripe narrower than a camera pixel is still seen as long as the
     crossings around it are.
     """
-    W = feat.shape[1]
     m = feat.shape[2]
-    nb = (W + block - 1) // block
     for c in range(m):
-        _block_extrema(feat, y, c, block, nb, bmax[c], bmax[m], True)
-        cnt[c] = _sign_events(feat, noise, y, c, t_rel, block, nb, bmax[c], gap_max, ex[c], es[c], et[c])
+        cnt[c] = _sign_events(feat, noise, y, c, gap_max, ex[c], es[c], et[c])
     ptr = np.zeros(3, np.int64)
     sign = np.zeros(3, np.int64)
     nr = 0
@@ -397,15 +395,15 @@ def _label_row(
         if p < 0:
             continue
         conf = False
-        if j + 1 < nr and pos[j + 1] >= 0 and pos[j + 1] == (p + 1) % period:
+        if j + 1 < nr and pos[j + 1] >= 0 and pos[j + 1] == _wrap(p + 1, period):
             conf = True
-        if j > 0 and pos[j - 1] >= 0 and p == (pos[j - 1] + 1) % period:
+        if j > 0 and pos[j - 1] >= 0 and p == _wrap(pos[j - 1] + 1, period):
             conf = True
         if not conf:
             continue
         for t in range(k):
             i = j + t
-            lv = (p + t) % period
+            lv = _wrap(p + t, period)
             if lab[i] == -1:
                 lab[i] = lv
             elif lab[i] != lv:
@@ -416,7 +414,7 @@ def _label_row(
             i += 1
             continue
         i0 = i
-        while i + 1 < nr and link[i] and lab[i + 1] == (lab[i] + 1) % period:
+        while i + 1 < nr and link[i] and lab[i + 1] == _wrap(lab[i] + 1, period):
             i += 1
         i1 = i
         i += 1
@@ -480,10 +478,12 @@ def _label_row(
             continue
         npx = xb - xa + 1
         seg = 0
+        slope = (nv[1] - nv[0]) / (nx[1] - nx[0])
         for xx in range(xa, xb + 1):
-            while seg + 2 < nn and xx > nx[seg + 1]:
-                seg += 1
-            slope = (nv[seg + 1] - nv[seg]) / (nx[seg + 1] - nx[seg])
+            if seg + 2 < nn and xx > nx[seg + 1]:
+                while seg + 2 < nn and xx > nx[seg + 1]:
+                    seg += 1
+                slope = (nv[seg + 1] - nv[seg]) / (nx[seg + 1] - nx[seg])
             colrow[xx] = nv[seg] + (xx - nx[seg]) * slope
         shift = 0.0
         if use_range:
@@ -541,8 +541,6 @@ def label_rows(
     min_frac,
     events,
     noise,
-    t_rel,
-    block,
     smooth,
     out_col,
     out_chain,
@@ -573,8 +571,6 @@ def label_rows(
     nv = np.empty(n, np.float64)
     sm = np.empty(n, np.float64)
     colrow = np.empty(W, np.float64)
-    nb = (W + block - 1) // block
-    bmax = np.empty((m + 1, nb), np.float32)
     ex = np.empty((m, n), np.float64)
     es = np.empty((m, n), np.int64)
     et = np.empty((m, n), np.int64)
@@ -582,9 +578,7 @@ def label_rows(
     n_chains = 0
     for y in range(H):
         if events:
-            nr = _event_runs(
-                feat, noise, y, t_rel, block, gap_max, bmax, ex, es, et, cnt, rs, re, rc, link, edge, left, right
-            )
+            nr = _event_runs(feat, noise, y, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right)
         else:
             nr = _pixel_runs(code, feat, wts, link_ok, y, gap_max, rs, re, rc, link, edge, left, right)
         n_chains = _label_row(

@@ -81,8 +81,10 @@ class TwoShotDecoder:
             self._luts[levels] = linearisation(levels, self.camera_gamma, resp)
         return self._luts[levels]
 
-    def classify(self, frame1: np.ndarray, frame2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Per-pixel codes (-1 = none) and the unmixed differences."""
+    def classify(
+        self, frame1: np.ndarray, frame2: np.ndarray, want_code: bool = True
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per-pixel codes (-1 = none), the unmixed differences and the event mode's sign thresholds."""
         if frame1.shape != frame2.shape or frame1.ndim != 3 or frame1.shape[2] != 3:
             raise InputError(f"frames of a pair differ in size or are not RGB: {frame1.shape} vs {frame2.shape}")
         if frame1.dtype not in (np.uint8, np.uint16) or frame2.dtype != frame1.dtype:
@@ -95,15 +97,26 @@ class TwoShotDecoder:
         lin, dlin = self.luts(frame1.dtype)
         p = self.params
         kernels.twoshot_classify(
-            frame1, frame2, lin, dlin, self.unmix, np.float32(p.t_abs), np.float32(p.t_rel), p.block, code, feat, noise
+            frame1,
+            frame2,
+            lin,
+            dlin,
+            self.unmix,
+            np.float32(p.t_abs),
+            np.float32(p.t_rel),
+            np.float32(p.t_rel_edges),
+            p.block,
+            want_code,
+            code,
+            feat,
+            noise,
         )
-        self._noise = noise
-        return code, feat
+        return code, feat, noise
 
     def decode(self, frame1: np.ndarray, frame2: np.ndarray, reversed_order: bool = False) -> StripeMap:
         """frame1 saw pattern 0 and frame2 pattern 1; reversed_order=True if they are given the other way."""
         if reversed_order:
             frame1, frame2 = frame2, frame1
-        code, feat = self.classify(frame1, frame2)
         p = self.params
-        return label(code, feat, self.spec, p.label, self.column_range, self._noise, p.t_rel_edges, p.block)
+        code, feat, thr = self.classify(frame1, frame2, want_code=not p.label.events)
+        return label(code, feat, self.spec, p.label, self.column_range, thr)

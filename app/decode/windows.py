@@ -56,11 +56,9 @@ def label(
     spec: WindowSpec,
     params: LabelParams,
     column_range: tuple[np.ndarray, np.ndarray] | None,
-    noise: np.ndarray | None = None,
-    t_rel: float = 0.0,
-    block: int = 8,
+    thresholds: np.ndarray | None = None,
 ) -> StripeMap:
-    """Identify stripes row by row; noise (per pixel and channel), t_rel and block feed the event mode."""
+    """Identify stripes row by row; thresholds (H, W, C) of |feat| for a sign feed the event mode."""
     H, W = code.shape
     col = np.full((H, W), np.nan, np.float32)
     chain = np.full((H, W), -1, np.int32)
@@ -84,9 +82,7 @@ def label(
         params.edges,
         params.min_frac,
         params.events,
-        noise if noise is not None else np.zeros((1, 1, 1), np.float32),
-        np.float32(t_rel),
-        int(block),
+        thresholds if thresholds is not None else np.zeros((1, 1, 1), np.float32),
         params.smooth,
         col,
         chain,
