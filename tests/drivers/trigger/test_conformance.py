@@ -79,7 +79,7 @@ def converse(port: str) -> tuple[list[list[bytes]], list[proto.Line]]:
         for data, expect in SCRIPT:
             s.write(data)
             got: list[bytes] = []
-            deadline = time.monotonic() + (0.15 if expect is None else 1.0)
+            deadline = time.monotonic() + (0.15 if expect is None else 3.0)
             while time.monotonic() < deadline and (expect is None or not got):
                 for item in dec.feed(s.read(s.in_waiting or 1)):
                     if isinstance(item, proto.Line) and item.name == "T":
@@ -127,7 +127,7 @@ def reset_exchange(port: str) -> list[proto.Line]:
         wait_ready(s)
         s.write(framed("RESET"))
         dec, lines = proto.LineDecoder(), []
-        deadline = time.monotonic() + 2.0
+        deadline = time.monotonic() + 5.0
         while len(lines) < 2 and time.monotonic() < deadline:
             lines += [x for x in dec.feed(s.read(256)) if isinstance(x, proto.Line)]
         s.write(framed("VER"))

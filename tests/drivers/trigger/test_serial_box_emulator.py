@@ -22,10 +22,12 @@ from drivers.trigger.errors import (
 )
 from drivers.trigger.serial_box import SerialTriggerBox
 
+WAIT = 3.0  # for events that must come: generous, a loaded machine can stall a pty for a second
+
 
 def open_box(port: str, **kw) -> SerialTriggerBox:
     kw.setdefault("boot_wait_s", 1.0)
-    kw.setdefault("timeout_s", 0.3)
+    kw.setdefault("timeout_s", 2.0)  # a retry would change the bytes on the line
     return SerialTriggerBox(port, **kw)
 
 
@@ -55,7 +57,7 @@ def test_events_count_and_mark_each_pattern_cycle(emulator):
     with open_box(emulator.port, cycle=3) as box:
         box.start(200)
         assert box.active_source == "INT"
-        events = [box.next_event(1.0) for _ in range(30)]
+        events = [box.next_event(WAIT) for _ in range(30)]
         assert [e.count for e in events] == list(range(1, 31))
         assert [e.phase for e in events] == [0, 1, 2] * 10
         assert all(a.host_timestamp_ns <= b.host_timestamp_ns for a, b in itertools.pairwise(events))
@@ -63,7 +65,7 @@ def test_events_count_and_mark_each_pattern_cycle(emulator):
         assert box.missed_events == 0
         # restart: the counter and the phase start again, and no old event leaks into the new run
         box.start(200)
-        first = box.next_event(1.0)
+        first = box.next_event(WAIT)
         assert (first.count, first.phase) == (1, 0)
 
 
@@ -76,18 +78,19 @@ def test_open_a_box_left_running_by_another_session(emulator):
         time.sleep(0.1)
         assert box.drain_events() == []
         box.start(100)
-        assert [(e.count, e.phase) for e in (box.next_event(1.0) for _ in range(4))] == [(1, 0), (2, 1), (3, 0), (4, 1)]
+        events = [box.next_event(WAIT) for _ in range(4)]
+        assert [(e.count, e.phase) for e in events] == [(1, 0), (2, 1), (3, 0), (4, 1)]
         assert box.missed_events == 0
 
 
 def test_resync_after_garbage_between_events(emulator):
     with open_box(emulator.port) as box:
         box.start(100)
-        box.next_event(1.0)
+        box.next_event(WAIT)
         emulator.inject(b"\x00\xff$T,99,0*00\n$OK,CN\r\nnoise noise $$$***\n")
-        box.next_event(1.0)  # the line is still usable
+        box.next_event(WAIT)  # the line is still usable
         emulator.inject(b"$T,5")  # a half line, completed by nothing: the next '$' resyncs
-        events = [box.next_event(1.0) for _ in range(10)]
+        events = [box.next_event(WAIT) for _ in range(10)]
         counts = [e.count for e in events]
         assert counts == list(range(counts[0], counts[0] + 10))
         assert box.missed_events == 0
@@ -98,31 +101,31 @@ def test_resync_after_garbage_between_events(emulator):
 def test_phase_mismatch_is_a_protocol_error(emulator):
     with open_box(emulator.port, cycle=2) as box:
         box.start(100)
-        box.next_event(1.0)
+        box.next_event(WAIT)
         emulator.swap_phases()
         with pytest.raises(TriggerProtocolError, match="phase") as exc:
             for _ in range(10):
-                box.next_event(1.0)
+                box.next_event(WAIT)
         assert emulator.port in str(exc.value)
         with pytest.raises(TriggerProtocolError):  # it stays an error until the next start
-            box.next_event(1.0)
+            box.next_event(WAIT)
 
 
 def test_reset_mid_session_is_detected_from_the_boot_line(emulator):
     with open_box(emulator.port) as box:
         box.start(100)
-        box.next_event(1.0)
+        box.next_event(WAIT)
         boot0 = box.boot_id
         emulator.reset()
         t0 = time.monotonic()
         with pytest.raises(TriggerResetError, match="rebooted") as exc:
             for _ in range(100):
-                box.next_event(1.0)
-        assert time.monotonic() - t0 < 1.0
+                box.next_event(WAIT)
+        assert time.monotonic() - t0 < WAIT  # at the BOOT line, not at a timeout
         assert emulator.port in str(exc.value) and "\n" not in str(exc.value)
         assert box.boot_id == boot0 + 1
         box.start(100)  # the operator restarts: the box is configured again (it lost its settings)
-        assert box.next_event(1.0).count == 1
+        assert box.next_event(WAIT).count == 1
         assert emulator.cycle == 2 and emulator.running
 
 
@@ -130,12 +133,12 @@ def test_silent_reset_is_detected_by_boot_id_and_counter(emulator):
     with open_box(emulator.port) as box:
         box.start(100)
         for _ in range(5):
-            ev = box.next_event(1.0)
+            ev = box.next_event(WAIT)
         emulator.reset(announce=False)  # the BOOT line is lost
         with pytest.raises(TriggerResetError):
             box.counter()  # count went back to 0 (or the boot id changed)
         box.start(100)
-        box.next_event(1.0)
+        box.next_event(WAIT)
         emulator.reset(announce=False)
         with pytest.raises(TriggerResetError, match=r"boot id|stopped"):
             box.next_event(0.3)  # silence -> STAT -> boot id changed
@@ -146,7 +149,7 @@ def test_missing_port_fails_at_once():
     t0 = time.monotonic()
     with pytest.raises(TriggerPortError, match="/dev/ttyNOPE0 does not exist") as exc:
         SerialTriggerBox("/dev/ttyNOPE0")
-    assert time.monotonic() - t0 < 0.1
+    assert time.monotonic() - t0 < 0.5  # no waiting at all: the path is checked first
     assert isinstance(exc.value, DeviceError)
 
 
@@ -160,7 +163,7 @@ def test_box_that_never_answers_times_out_quickly(emulator):
     t0 = time.monotonic()
     with pytest.raises(TriggerTimeoutError, match="does not answer") as exc:
         open_box(emulator.port, boot_wait_s=0.5)
-    assert time.monotonic() - t0 < 1.0
+    assert time.monotonic() - t0 < 1.5  # boot_wait_s, plus scheduling slack
     assert emulator.port in str(exc.value)
 
 
@@ -169,7 +172,7 @@ def test_box_that_answers_garbage(emulator):
     t0 = time.monotonic()
     with pytest.raises(TriggerProtocolError, match=r"garbage.*baud"):
         open_box(emulator.port, boot_wait_s=0.5)
-    assert time.monotonic() - t0 < 1.0
+    assert time.monotonic() - t0 < 1.5  # boot_wait_s, plus scheduling slack
 
 
 def test_a_device_that_is_not_a_trigger_box():
@@ -182,13 +185,13 @@ def test_a_device_that_is_not_a_trigger_box():
 def test_box_stops_answering_mid_session(emulator):
     with open_box(emulator.port, timeout_s=0.2, retries=1) as box:
         box.start(100)
-        box.next_event(1.0)
+        box.next_event(WAIT)
         emulator.silent = True
         t0 = time.monotonic()
         with pytest.raises(TriggerTimeoutError, match="did not answer STAT"):
             for _ in range(100):
                 box.next_event(0.2)
-        assert time.monotonic() - t0 < 1.5
+        assert time.monotonic() - t0 < 2.5  # 0.2 s wait + 2 x 0.2 s STAT, plus scheduling slack
 
 
 def test_refused_commands_are_typed(emulator):
@@ -227,16 +230,16 @@ def test_unplug_then_reconnect(emulator):
     box = open_box(emulator.port)
     try:
         box.start(100)
-        box.next_event(1.0)
+        box.next_event(WAIT)
         emulator.unplug()
         t0 = time.monotonic()
         with pytest.raises(TriggerDisconnectedError, match="went away"):
             for _ in range(100):
-                box.next_event(1.0)
-        assert time.monotonic() - t0 < 1.0
+                box.next_event(WAIT)
+        assert time.monotonic() - t0 < WAIT  # at the read error, not at a timeout
         emulator.replug()  # new /dev/pts/N behind the same link path
         box.start(100)  # reconnects by itself
-        assert box.next_event(1.0).count == 1
+        assert box.next_event(WAIT).count == 1
         assert box.boot_id == emulator.boot_id
     finally:
         box.close()
@@ -251,16 +254,17 @@ def test_external_vsync_source(emulator):
             box.next_event(0.2)
         for _ in range(3):
             emulator.vsync()
-        assert [(e.count, e.phase) for e in (box.next_event(1.0) for _ in range(3))] == [(1, 0), (2, 1), (3, 0)]
+        assert [(e.count, e.phase) for e in (box.next_event(WAIT) for _ in range(3))] == [(1, 0), (2, 1), (3, 0)]
 
 
-def test_auto_source_picks_vsync_when_wired(tmp_path):
+def test_auto_source_picks_vsync_when_wired():
     with TriggerBoxEmulator(vsync_hz=120) as emu, open_box(emu.port, source="auto") as box:
         box.start(60)
+        t0 = time.monotonic()
         assert box.active_source == "EXT"
-        ev = [box.next_event(1.0) for _ in range(12)]
-        hz = 11 / ((ev[-1].host_timestamp_ns - ev[0].host_timestamp_ns) / 1e9)
-        assert 80 < hz < 160  # the vsync's rate (120), not the set 60 Hz
+        time.sleep(0.5)
+        hz = box.counter() / (time.monotonic() - t0)
+        assert 90 < hz < 150  # the vsync's rate (120), not the set 60 Hz
 
 
 def test_bad_settings_are_input_errors():
