@@ -70,3 +70,32 @@ def sensor(
         for i in range(n):
             c = min(max(img[i] * scale + half, zero), top)
             out[i] = lut[np.int32(c)]
+
+
+@numba.njit(cache=True, nogil=True)
+def _affine(X: np.ndarray, M: np.ndarray, before: np.ndarray, after: np.ndarray) -> np.ndarray:
+    out = np.empty((X.shape[0], 3))
+    for i in range(X.shape[0]):
+        x0 = X[i, 0] - before[0]
+        x1 = X[i, 1] - before[1]
+        x2 = X[i, 2] - before[2]
+        for k in range(3):
+            out[i, k] = x0 * M[0, k] + x1 * M[1, k] + x2 * M[2, k] + after[k]
+    return out
+
+
+_ZERO3 = np.zeros(3)
+
+
+def affine3(
+    X: np.ndarray, M: np.ndarray, before: np.ndarray | None = None, after: np.ndarray | None = None
+) -> np.ndarray:
+    """(X - before) @ M + after for (N, 3) points, one thread.
+
+    numpy's matmul hands (N, 3) @ (3, 3) to a multi-threaded BLAS, which is ten times slower
+    than this loop on a busy 2-core machine.
+    """
+    X = np.ascontiguousarray(X, np.float64).reshape(-1, 3)
+    b = _ZERO3 if before is None else np.ascontiguousarray(before, np.float64).reshape(3)
+    a = _ZERO3 if after is None else np.ascontiguousarray(after, np.float64).reshape(3)
+    return _affine(X, np.ascontiguousarray(M, np.float64), b, a)

@@ -16,6 +16,7 @@ import numpy as np
 
 from app.errors import InputError
 from calibration.model import Calibration
+from drivers.sim.kernels import affine3
 
 
 @dataclass(frozen=True)
@@ -170,7 +171,7 @@ def project(X: np.ndarray, K: np.ndarray, dist: np.ndarray, R: np.ndarray, T: np
 
     The same model as cv2.projectPoints (tests check they agree), several times faster.
     """
-    Xv = np.asarray(X, np.float64) @ np.asarray(R).T + np.asarray(T).reshape(3)
+    Xv = affine3(X, np.asarray(R, np.float64).T, after=np.asarray(T, np.float64))
     with np.errstate(divide="ignore", invalid="ignore"):
         xy = Xv[:, :2] / Xv[:, 2:3]
     xd = distort_normalized(xy, np.asarray(dist, np.float64).ravel())

@@ -26,7 +26,7 @@ import numpy as np
 
 from app.errors import InputError
 from calibration.model import Calibration
-from drivers.sim.kernels import light_to_linear, sensor
+from drivers.sim.kernels import affine3, light_to_linear, sensor
 from drivers.sim.optics import Geometry, camera_rays, project
 from drivers.sim.scene import Board, Scene, SceneError, load_scene
 from drivers.sim.shapes import Shape
@@ -337,7 +337,7 @@ class VirtualRig:
         cos_i = np.einsum("ij,ij->i", n, lvec)
         t_sh, _, _ = self._cast(shapes, self._Cp, -lvec)
         unshadowed = t_sh >= dist - (0.01 + 1e-5 * dist)
-        Xp = X @ self._R.T + self._T
+        Xp = affine3(X, self._R.T, after=self._T)
         with np.errstate(divide="ignore", invalid="ignore"):
             xn = Xp[:, :2] / Xp[:, 2:3]
         lim = np.abs(np.linalg.solve(self._Kp, [[-0.5, wp - 0.5], [-0.5, hp - 0.5], [1, 1]])[:2]).max() * 1.5
@@ -401,19 +401,27 @@ class VirtualRig:
         py, px = np.divmod(pix, w)
         base = xy[py, px]
         jx, jy = dx[py, px], dy[py, px]
+        plane_d = np.einsum("ij,ij->i", n, X)
+
+        def on_plane(sxy: np.ndarray) -> np.ndarray:
+            dsub = np.concatenate([sxy, np.ones((len(sxy), 1))], axis=1)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                tt = plane_d / np.einsum("ij,ij->i", n, dsub)
+            P = dsub * tt[:, None]
+            bad = ~np.isfinite(tt) | (tt <= 0)
+            P[bad] = X[bad]
+            return P
+
+        # texture coordinates are affine in the sub-pixel offset across one pixel (to ~1e-7 of
+        # a pixel here), so three exact points give them all; then only the texture is sampled
+        uv0 = s.uv(X, face)
+        du = s.uv(on_plane(base + jx), face) - uv0
+        dv = s.uv(on_plane(base + jy), face) - uv0
         offs = (np.arange(ss) + 0.5) / ss - 0.5
         acc = np.zeros((len(pix), 3))
-        plane_d = np.einsum("ij,ij->i", n, X)
         for oy in offs:
             for ox in offs:
-                sxy = base + ox * jx + oy * jy
-                dsub = np.concatenate([sxy, np.ones((len(pix), 1))], axis=1)
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    tt = plane_d / np.einsum("ij,ij->i", n, dsub)
-                P = dsub * tt[:, None]
-                bad = ~np.isfinite(tt) | (tt <= 0)
-                P[bad] = X[bad]
-                acc += s.albedo(P, face)
+                acc += s.texture.color(uv0 + ox * du + oy * dv, face, s.material.color)
         return acc / (ss * ss)
 
     # ------------------------------------------------------------------ frames

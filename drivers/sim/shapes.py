@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
+from drivers.sim.kernels import affine3
 from drivers.sim.textures import Texture, Uniform
 
 INF = np.float64(np.inf)
@@ -39,13 +40,17 @@ class Shape:
 
     # -- frames
     def to_local(self, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return (np.asarray(o, np.float64) - self.c) @ self.R, d @ self.R
+        o = np.asarray(o, np.float64)
+        ol = (o - self.c) @ self.R if o.ndim == 1 else affine3(o, self.R, self.c)
+        return ol, affine3(d, self.R)
 
     def point_to_local(self, X: np.ndarray) -> np.ndarray:
-        return (X - self.c) @ self.R
+        return affine3(X, self.R, self.c)
 
     def normal_to_camera(self, n_local: np.ndarray) -> np.ndarray:
-        return n_local @ self.R.T
+        if n_local.ndim == 1:
+            return self.R @ n_local
+        return affine3(n_local, self.R.T)
 
     # -- interface
     def intersect(self, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
