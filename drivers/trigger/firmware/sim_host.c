@@ -12,10 +12,12 @@
  * SIGTERM/INT exits cleanly (the edge log is flushed).
  *
  * The UART bridge is our own, not simavr's uart_pty part: uart_pty moves bytes in a second thread
- * without locking, and on a loaded machine its replies sat in its FIFO for 0.1-2.7 s. Here a
- * simulated-time timer polls the pty every 0.5 ms on the simulation thread (RX), and the UART
- * output hook writes each byte to the pty at once (TX). simavr's own sleep keeps simulated time
- * in step with the wall clock.
+ * without locking and symlinks a fixed /tmp/simavr-uart0 that parallel runs fight over. Here all
+ * UART traffic stays on the simulation thread: a simulated-time timer polls the pty every 0.5 ms
+ * (RX), and the UART output hook writes each byte to the pty at once (TX). simavr's own sleep keeps
+ * simulated time in step with the wall clock. (With two CPU-bound processes on this 2-core machine,
+ * pty round trips still stalled for 0.1-2 s now and then, with either bridge: that delay is outside
+ * the simulator, between its pty write and the reader's wake-up.)
  */
 #include <errno.h>
 #include <fcntl.h>
