@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import shutil
 
+import cv2
 import numpy as np
 import pytest
 import yaml
@@ -155,3 +156,54 @@ def test_from_repeats_the_solve_and_survives_bad_poses(auto_run, run_cli_module,
     # without --force an existing capture is never overwritten by --auto
     proc3 = run_cli_module("calibrate", "--auto", "--poses", "5", "--capture", cap, "--out", tmp_path / "x.yaml")
     assert "already exists" in one_line_error(proc3)
+
+
+def test_file_written_only_when_the_solve_passes_or_with_force(tmp_path, monkeypatch, capsys):
+    """The write gate of `calibrate --from`, on a real solve of synthetic correspondences."""
+    from app.cli import main
+    from calibration import session
+    from calibration.poses import plan_poses
+    from calibration.solve import solve
+    from drivers.sim.optics import Geometry
+
+    truth = Geometry().calibration()
+    board = Board("checkerboard", 7, 10, 12.0)
+    obj = board.object_points().astype(np.float64)
+    obs = []
+    rng = np.random.default_rng(0)
+    for i, (rvec, tvec) in enumerate(plan_poses(board, truth, 8, seed=1)):
+        R, _ = cv2.Rodrigues(rvec)
+        X = obj @ R.T + tvec
+        c, _ = cv2.projectPoints(X, np.zeros(3), np.zeros(3), truth.camera_matrix, truth.camera_distortion)
+        rp, _ = cv2.Rodrigues(truth.R)
+        p, _ = cv2.projectPoints(X, rp, truth.T, truth.projector_matrix, truth.projector_distortion)
+        noise = rng.normal(0, 0.05, (2, len(obj), 2))
+        obs.append(
+            session.PoseObservation(f"pose_{i:03d}", obj, c.reshape(-1, 2) + noise[0], p.reshape(-1, 2) + noise[1])
+        )
+    cap = tmp_path / "cap"
+    cap.mkdir()
+    board.save(cap / "board.yaml")
+    for i in range(8):
+        (cap / f"pose_{i:03d}").mkdir()
+        (cap / f"pose_{i:03d}" / "dump.yaml").write_text("format: slscan-dump\n")
+
+    def fake_solve_capture(capture, camera_gamma=None, progress=None, fail=False):
+        sol = solve(obs, truth.camera_size, truth.projector_size)
+        if fail:
+            sol.problems.append("camera RMS 0.071 px is above 0.01 px")
+        return session.CaptureResult(sol, None, truth)
+
+    monkeypatch.setattr(session, "solve_capture", fake_solve_capture)
+    out = tmp_path / "good.yaml"
+    assert main(["calibrate", "--from", str(cap), "--out", str(out)]) == 0
+    assert Calibration.load(out).rms["camera_rms"] < 0.1
+    assert "verdict: good" in capsys.readouterr().out
+
+    monkeypatch.setattr(session, "solve_capture", lambda *a, **k: fake_solve_capture(*a, **k, fail=True))
+    bad = tmp_path / "bad.yaml"
+    assert main(["calibrate", "--from", str(cap), "--out", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "not written" in err and "--force" in err and not bad.exists()
+    assert main(["calibrate", "--from", str(cap), "--out", str(bad), "--force"]) == 0
+    assert bad.exists() and "written with --force" in capsys.readouterr().err
