@@ -396,6 +396,10 @@ class CaptureLoop:
             self.trigger.start(self.rate_hz)
             self._count = 0
         self.checker.anchor_trigger(1)  # trigger count k is tick k
+        if self.trigger is not None and self.projector is not None:
+            # A camera that reports no trigger count: its frame counter, started before the
+            # trigger, counts the triggers (GenICam frame ids count from 1 per start).
+            self.checker.anchor_frame_id(0, 0)
         self._deadline = self.clock()
         self._started = True
         if self._use_thread:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import importlib
+import inspect
 import os
 import sys
 import time
@@ -17,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from app.capture import CaptureLoop
+from app.capture import CaptureLoop, pattern_order
 from app.config import Config, load_config
 from app.errors import DeviceError, InputError
 from app.patterns import SCHEMES, PatternSet, make_patterns
@@ -168,6 +169,8 @@ def build_session(
         raise InputError(f"{cfg.path}: key 'calibration': file {cal_file} not found (run `slscan calibrate`)")
     calibration = Calibration.load(cal_file)
     patterns = make_patterns(scheme, calibration.projector_size, **opts)
+    if trig_name and "cycle" not in trig_opts and "cycle" in inspect.signature(TRIGGERS[trig_name]).parameters:
+        trig_opts["cycle"] = len(pattern_order(scheme, len(patterns)))  # the box marks each pattern cycle
 
     def make_devices() -> tuple[Any, Any, Any]:
         cam = _make(cfg, "camera", CAMERAS, cam_name, cam_opts)  # type: ignore[arg-type]
@@ -298,6 +301,8 @@ def run_headless(session: Session, args: argparse.Namespace, label: str = "live"
             recorder.close()
     if sys.stderr.isatty():
         print(file=sys.stderr)
+    if pipe.error and pipe.capture.frames == 0:  # the devices did not start: the message is all there is
+        raise DeviceError(pipe.error)
     fig = pipe.figures()
     print_figures(fig)
     if recorder is not None:

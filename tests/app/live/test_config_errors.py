@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 import yaml
 
@@ -69,3 +70,27 @@ def test_dump_refuses_to_overwrite(tmp_path, capsys):
     assert main(["dump", "--frames", "3", "--out", str(tmp_path / "rec")]) == 2
     assert "never overwritten" in capsys.readouterr().err
     assert (tmp_path / "rec" / "keep.txt").read_text() == "mine"
+
+
+def test_rig_example_config_names_real_drivers_and_fails_on_the_missing_device(tmp_path):
+    """config/rig.example.yaml: every driver it names is registered; without hardware, one clear device error."""
+    import shutil
+
+    from app.commands.live import build_session
+    from app.config import CONFIG_DIR
+    from app.errors import DeviceError, InputError
+    from calibration.model import Calibration
+
+    rig = tmp_path / "rig.yaml"
+    shutil.copy(CONFIG_DIR / "rig.example.yaml", rig)
+    with pytest.raises(InputError, match=r"key 'calibration'.*not found"):
+        build_session(rig)
+    K = [[800, 0, 319.5], [0, 800, 239.5], [0, 0, 1]]
+    Kp = [[1200, 0, 511.5], [0, 1200, 383.5], [0, 0, 1]]
+    Calibration((640, 480), K, [0] * 5, (1024, 768), Kp, [0] * 5, np.eye(3), [-150, 0, 0]).save(
+        tmp_path / "calibration.yaml"
+    )
+    session = build_session(rig)
+    assert session.scheme == "two-shot" and session.patterns.size == (1024, 768)
+    with pytest.raises(DeviceError, match="GenTL producer"):
+        session.make_devices()
