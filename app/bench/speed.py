@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> list[dict]:
                 res = dec.decode(frames)
                 return res.depth
 
-            def decode_only(dec=dec, frames=frames):
+            def decode_only(dec=dec, frames=frames, scheme=scheme):
                 sm = dec.decoder.decode(*frames) if scheme != "graycode" else dec.decoder.decode(frames)
                 return dec.triangulator.depth(sm.column)
 

@@ -619,16 +619,26 @@ def label_rows(
 
 
 @njit(cache=True, nogil=True)
-def vertical_check(out_col, out_chain, n_chains, tol):
-    """Drop chains that disagree with the rows above and below more often than they agree."""
+def vertical_check(out_col, out_chain, n_chains, tol, min_support):
+    """Keep a chain only where the rows above and below confirm it.
+
+    Every labelled neighbour (y +- 1, same x) within tol projector px agrees, any other disagrees.
+    A chain survives if it has more agreements than disagreements and at least min_support
+    agreements per pixel: a two-shot window sequence is any walk of one-bit changes, so a chain
+    made of noise (shadow, black surface) matches the sequence by chance far too easily, but it
+    never lines up with the rows next to it.
+    """
     H, W = out_col.shape
-    agree = np.zeros(max(n_chains, 1), np.int32)
-    disagree = np.zeros(max(n_chains, 1), np.int32)
+    nc = max(n_chains, 1)
+    agree = np.zeros(nc, np.int32)
+    disagree = np.zeros(nc, np.int32)
+    npx = np.zeros(nc, np.int32)
     for y in range(H):
         for x in range(W):
             c = out_chain[y, x]
             if c < 0:
                 continue
+            npx[c] += 1
             v = out_col[y, x]
             for dy in (-1, 1):
                 yy = y + dy
@@ -640,15 +650,17 @@ def vertical_check(out_col, out_chain, n_chains, tol):
                     agree[c] += 1
                 else:
                     disagree[c] += 1
+    drop = np.zeros(nc, np.bool_)
     dropped = 0
     for c in range(n_chains):
-        if disagree[c] > agree[c]:
+        if disagree[c] >= agree[c] or agree[c] < min_support * npx[c]:
+            drop[c] = True
             dropped += 1
     if dropped:
         for y in range(H):
             for x in range(W):
                 c = out_chain[y, x]
-                if c >= 0 and disagree[c] > agree[c]:
+                if c >= 0 and drop[c]:
                     out_col[y, x] = np.nan
                     out_chain[y, x] = -1
     return dropped

@@ -45,6 +45,7 @@ class LabelParams:
     gap_max: int = 2  # camera pixels without a code allowed between neighbouring stripes
     edges: bool = True  # sub-pixel nodes at stripe edges (zero crossings) instead of stripe centres
     vertical_tol: float = 2.0  # projector px: a value agrees with the rows above/below within this
+    min_support: float = 0.3  # agreeing vertical neighbours per pixel a chain needs (0..2)
     min_frac: float = 0.7  # share of a chain's pixels inside the depth range for its copy to be chosen
     smooth: int = 2  # sub-pixel nodes: local line fit over +-smooth neighbouring nodes (0 = raw)
     events: bool = False  # two-shot: stripes from per-channel zero crossings instead of pixel runs
@@ -87,7 +88,9 @@ def label(
         col,
         chain,
     )
-    dropped = kernels.vertical_check(col, chain, n, params.vertical_tol) if params.vertical_tol > 0 else 0
+    dropped = 0
+    if params.vertical_tol > 0:
+        dropped = kernels.vertical_check(col, chain, n, params.vertical_tol, params.min_support)
     conf = np.where(np.isfinite(col), np.float32(1.0), np.float32(0.0))
     return StripeMap(
         col,
