@@ -166,3 +166,46 @@ def test_kill_9_of_slscan_dump_leaves_a_readable_dump(tmp_path):
     for i in range(len(dump.frames)):
         assert dump.load_frame(i).shape == (240, 320, 3)
     assert dump.calibration() is not None
+
+
+def test_camera_that_stops_sending_times_out_and_the_dump_is_finalised(tmp_path, capsys):
+    data = yaml.safe_load(DEFAULT_CONFIG.read_text())
+    data["sim"].update(camera_size=[320, 240], faults=[{"kind": "stall", "at": [12], "seconds": 1.5}])
+    cfg = tmp_path / "stall.yaml"
+    cfg.write_text(yaml.safe_dump(data))
+    out = tmp_path / "rec"
+    code = main(["dump", "--config", str(cfg), "--frames", "1000", "--out", str(out), "--timeout", "0.5"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "no frame within" in err and "finalised" in err
+    dump = read_dump(out)
+    assert 5 <= len(dump.frames) <= 11 and dump.dropped_tail == 0
+    assert (out / "dump.yaml").read_text().endswith("\n")
+
+
+def test_ctrl_c_stops_slscan_dump_cleanly(tmp_path):
+    data = yaml.safe_load(DEFAULT_CONFIG.read_text())
+    data["sim"]["camera_size"] = [320, 240]
+    cfg = tmp_path / "small.yaml"
+    cfg.write_text(yaml.safe_dump(data))
+    out = tmp_path / "rec"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "app.cli", "dump", "--config", str(cfg), "--frames", "100000", "--out", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + 90
+    while time.monotonic() < deadline:
+        idx = out / "dump.yaml"
+        if idx.is_file() and idx.read_text().count("\n- {") >= 4:
+            break
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130, stderr
+    assert "interrupted" in stderr and "Traceback" not in stderr
+    assert "recorded" in stdout and "NOT recorded" not in stdout
+    dump = read_dump(out)
+    assert len(dump.frames) >= 4 and dump.dropped_tail == 0
+    assert not list((out / "frames").glob("*.tmp.png"))
