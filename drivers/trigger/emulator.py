@@ -35,6 +35,7 @@ class TriggerBoxEmulator:
         self.silent = False
         self.garbage = False
         self.phase_fault = False
+        self._booting_until = 0.0
         self._lock = threading.RLock()
         self._stop = threading.Event()
         self._decoder = proto.LineDecoder(require_checksum=False)
@@ -79,6 +80,13 @@ class TriggerBoxEmulator:
             self._decoder = proto.LineDecoder(require_checksum=False)
             if announce:
                 self._send("BOOT", proto.PRODUCT, FW_VERSION, self.boot_id, cause)
+        self._wake()
+
+    def reboot(self, boot_s: float = 0.3) -> None:
+        """Like an Uno reset by DTR when the port opens: deaf for boot_s (the bootloader), then BOOT."""
+        with self._lock:
+            self._defaults()
+            self._booting_until = time.monotonic() + boot_s
         self._wake()
 
     def inject(self, data: bytes) -> None:
@@ -187,10 +195,15 @@ class TriggerBoxEmulator:
                         data = os.read(fd, 4096)
                     except OSError:
                         data = b""
+                    if self._booting_until:
+                        data = b""  # the bootloader does not speak our protocol
                     if not self.silent:
                         self.rx += data
                         for item in self._decoder.feed(data):
                             self._handle(item)
+                if self._booting_until and time.monotonic() >= self._booting_until:
+                    self._booting_until = 0.0
+                    self.reset(cause="EXT")
                 self._tick()
 
     def _tick(self) -> None:

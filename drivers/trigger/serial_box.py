@@ -323,6 +323,9 @@ class SerialTriggerBox:
             )
         self.version = reply[1]
         self.boot_id = self._int(reply, 2, "VER")
+        with self._cond:  # a BOOT line before this reply is the box starting up, not a reset mid-session
+            if isinstance(self._fault, TriggerResetError):
+                self._fault = None
 
     # -- commands ---------------------------------------------------------------------------
     def command(

@@ -145,6 +145,16 @@ def test_silent_reset_is_detected_by_boot_id_and_counter(emulator):
         assert ev.count == 5
 
 
+def test_box_that_reboots_as_the_port_opens(emulator):
+    emulator.reboot(0.4)  # an Uno resets on DTR: deaf while its bootloader runs, then BOOT
+    with open_box(emulator.port, timeout_s=0.2, boot_wait_s=2.0) as box:
+        assert box.boot_id == emulator.boot_id
+        assert box.counter() == 0  # a reboot while connecting is not a reset mid-session
+        box.start(100)
+        assert box.next_event(WAIT).count == 1
+    assert emulator.rx.count(b"$VER*41\n") >= 1
+
+
 def test_missing_port_fails_at_once():
     t0 = time.monotonic()
     with pytest.raises(TriggerPortError, match="/dev/ttyNOPE0 does not exist") as exc:

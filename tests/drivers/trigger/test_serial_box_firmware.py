@@ -28,6 +28,7 @@ def open_box(port: str, **kw) -> SerialTriggerBox:
 def test_events_counter_and_pins(simbox):
     with open_box(simbox.port, cycle=3, pulse_us=100, source="int") as box:
         assert box.version == "1.0" and box.boot_id == 0
+        assert box.counter() == 0  # its BOOT line (sent as we connected) is not a reset mid-session
         box.start(100)
         assert box.active_source == "INT"
         events = [box.next_event(WAIT) for _ in range(30)]
