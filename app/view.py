@@ -82,10 +82,7 @@ class LiveView:
         self.message = ""
         self.processor = session.processor()
         self.pipe = self._start_pipeline()
-        w, h = session.calibration.camera_size
-        self.cam_size = (w, h)
-        self.scale = min(1.0, 1800.0 / (3 * w))
-        self.pane = (int(w * self.scale), int(h * self.scale))
+        self.cam_size = session.calibration.camera_size
 
     def _start_pipeline(self):
         pipe = self.LivePipeline(
@@ -154,12 +151,16 @@ class LiveView:
 
     # -- drawing ---------------------------------------------------------------------------
     def run(self) -> int:
-        from drivers.projector.screens import import_pyglet
+        from drivers.projector.screens import import_pyglet, open_display
 
         pyglet = import_pyglet()
         from pyglet.window import key
 
-        pw, ph = self.pane
+        # Three panes side by side, scaled down (never up) to fit the operator's screen.
+        w, h = self.cam_size
+        screen = open_display().get_default_screen()
+        scale = min(1.0, (screen.width - 16) / (3 * w), (screen.height - 100) / h)
+        pw, ph = int(w * scale), int(h * scale)
         win = pyglet.window.Window(3 * pw, ph + 28, caption="slscan live", vsync=False)
         blank = np.zeros((self.cam_size[1], self.cam_size[0], 3), np.uint8)
         images = [pyglet.image.ImageData(blank.shape[1], blank.shape[0], "RGB", blank.tobytes()) for _ in range(3)]
