@@ -5,10 +5,10 @@ no board is seen) and the camera-field coverage; right: the projector-field cove
 pose count against the minimum and recommended counts, the tilt directions still missing, each
 pose's error as soon as it is captured, and the verdict.
 
-Keys: space = capture a pose, u / backspace = undo the last pose, enter = solve, verdict and a
-flat-board validation scan (then s saves the calibration), q / esc = quit.
+Keys: space = capture a pose, u / backspace = undo the last pose, enter = verdict and a
+flat-board validation scan, s = save the calibration (once the solve passes), q / esc = quit.
 On the virtual rig the board is moved with the keyboard: n = next suggested pose, arrows = tilt,
-w/a/s/d = move, z/x = nearer/farther.
+i/j/k/l = move, z/x = nearer/farther.
 
 So far the wizard drives the virtual rig only; on real hardware, record the poses with the
 capture layout (calibration/capture.py) and solve them with `slscan calibrate --from`.
@@ -38,8 +38,8 @@ PANE = (640, 480)
 class SimBoardSource:
     """The virtual rig with its board moved from the keyboard (there is no hand to hold it)."""
 
-    def __init__(self, scene: str, seed: int = 0) -> None:
-        self.rig = make_rig(scene)
+    def __init__(self, scene: str, seed: int = 0, **rig_overrides: object) -> None:
+        self.rig = make_rig(scene, **rig_overrides)
         self.board = rig_board(self.rig)
         self.suggested = plan_poses(self.board, self.rig.calibration, 40, seed=seed)
         self.k = 0
@@ -97,6 +97,119 @@ class SimBoardSource:
         )
 
 
+class WizardWindow:
+    """The operator window over a board source; keys go through `handle_key` (scriptable in tests)."""
+
+    def __init__(self, src: SimBoardSource, out: Path, capture_dir: Path) -> None:
+        from drivers.projector.screens import display_name, import_pyglet
+
+        display_name()  # a clear one-line error without a display, before pyglet tries
+        self.pyglet = pyglet = import_pyglet()
+        from pyglet.window import key
+
+        self.key = key
+        self.src, self.out, self.capture_dir = src, out, capture_dir
+        writer = CaptureWriter(capture_dir, src.board, src.patterns)
+        self.state = WizardState(src.board, src.camera_size, src.projector_size, writer)
+        self.verdict: list[str] = []
+        self.win = pyglet.window.Window(2 * PANE[0], PANE[1] + 150, caption="slscan calibrate", vsync=False)
+        blank = np.zeros((PANE[1], PANE[0], 3), np.uint8)
+        self.panes = [pyglet.image.ImageData(PANE[0], PANE[1], "RGB", blank.tobytes()) for _ in range(2)]
+        self.label = pyglet.text.Label(
+            "", x=6, y=PANE[1] + 150 - 6, width=2 * PANE[0] - 12, multiline=True, anchor_y="top", font_size=10
+        )
+        self.moves = {
+            key.LEFT: ((0, -5), (0, 0, 0)), key.RIGHT: ((0, 5), (0, 0, 0)),
+            key.UP: ((5, 0), (0, 0, 0)), key.DOWN: ((-5, 0), (0, 0, 0)),
+            key.J: ((0, 0), (-10, 0, 0)), key.L: ((0, 0), (10, 0, 0)),
+            key.I: ((0, 0), (0, -10, 0)), key.K: ((0, 0), (0, 10, 0)),
+            key.Z: ((0, 0), (0, 0, -20)), key.X: ((0, 0), (0, 0, 20)),
+        }  # fmt: skip
+        self.win.push_handlers(on_draw=self.on_draw, on_key_press=self.on_key_press, on_close=self.on_close)
+        self.refresh()
+
+    def upload(self, i: int, rgb: np.ndarray) -> None:
+        rgb = cv2.resize(np.ascontiguousarray(rgb), PANE, interpolation=cv2.INTER_AREA)
+        self.panes[i].set_data("RGB", -PANE[0] * 3, np.ascontiguousarray(rgb).tobytes())
+
+    @staticmethod
+    def coverage_image(mask: np.ndarray, size: tuple[int, int], base: np.ndarray | None = None) -> np.ndarray:
+        img = base.copy() if base is not None else np.zeros((size[1], size[0], 3), np.uint8)
+        tint = cv2.resize(mask.astype(np.uint8), size, interpolation=cv2.INTER_NEAREST).astype(bool)
+        img[tint] = (0.6 * img[tint] + [0, 90, 0]).astype(np.uint8)
+        return img
+
+    def refresh(self) -> None:
+        from calibration.board import detect
+
+        src, state = self.src, self.state
+        live = src.live()
+        det = detect(src.board, live)
+        self.upload(0, self.coverage_image(state.camera_coverage(), src.camera_size, overlay(live, det)))
+        prj = self.coverage_image(state.projector_coverage(), src.projector_size)
+        for p in state.poses:
+            for x, y in p.observation.projector_points:
+                cv2.circle(prj, (round(float(x)), round(float(y))), 3, (255, 255, 0), -1)
+        self.upload(1, prj)
+        seen = f"board seen ({len(det)} corners)" if det is not None else "NO BOARD in view"
+        keys = "space capture · u undo · enter verdict · s save · n next pose · arrows tilt · ijkl move · z/x depth · q"
+        self.label.text = "\n".join([seen, *state.hints(), *state.messages[-3:], *self.verdict[-3:], keys])
+
+    def handle_key(self, symbol: int) -> None:
+        key, state, src = self.key, self.state, self.src
+        if symbol == key.SPACE:
+            state.add_pose(src.capture(), src.meta, decode_projector_maps)
+        elif symbol in (key.U, key.BACKSPACE):
+            state.undo()
+        elif symbol == key.N:
+            src.next_suggested()
+        elif symbol == key.ENTER:
+            self.verdict.clear()
+            if state.solution is None or state.solution.calibration is None:
+                self.verdict.append(f"verdict: not yet: {len(state.poses)} poses")
+            else:
+                self.verdict.append(report.verdict(state.solution))
+                self.verdict.append(src.validation_scan(state.solution.calibration))
+        elif symbol == key.S:
+            if state.solution is not None and state.solution.passed:
+                state.solution.calibration.save(self.out)
+                self.verdict.append(f"wrote {self.out}")
+            else:
+                self.verdict.append("not saved: the solve has not passed its checks yet")
+        elif symbol in self.moves:
+            src.move(*self.moves[symbol])
+        else:
+            return
+        self.refresh()
+
+    def on_draw(self) -> None:
+        self.win.clear()
+        self.panes[0].blit(0, 0)
+        self.panes[1].blit(PANE[0], 0)
+        self.label.draw()
+
+    def on_key_press(self, symbol: int, modifiers: int) -> bool:
+        if symbol in (self.key.ESCAPE, self.key.Q):
+            self.pyglet.app.exit()
+        else:
+            self.handle_key(symbol)
+        return True
+
+    def on_close(self) -> None:
+        self.pyglet.app.exit()
+
+    def close(self) -> None:
+        self.win.close()
+
+    def run(self) -> None:
+        try:
+            self.pyglet.app.run()
+        except KeyboardInterrupt:
+            pass
+        finally:
+            self.close()
+
+
 def run_wizard(args: argparse.Namespace) -> int:
     from app.config import load_config
 
@@ -107,103 +220,13 @@ def run_wizard(args: argparse.Namespace) -> int:
             f"{cfg.path}: the interactive wizard drives the virtual rig only so far; record the poses as a "
             "calibration capture (board.yaml + pose_NNN/ Gray-code dumps) and run slscan calibrate --from DIR"
         )
-    from drivers.projector.screens import import_pyglet
+    from drivers.projector.screens import display_name
 
-    pyglet = import_pyglet()
-    from pyglet.window import key
-
+    display_name()  # no display: one clear line before minutes of rig set-up
     out = Path(args.out)
     capture_dir = Path(args.capture) if args.capture else out.with_name(out.stem + ".capture")
-    src = SimBoardSource(args.scene, args.seed)
-    writer = CaptureWriter(capture_dir, src.board, src.patterns)
-    state = WizardState(src.board, src.camera_size, src.projector_size, writer)
-    verdict: list[str] = []
-
-    win = pyglet.window.Window(2 * PANE[0], PANE[1] + 150, caption="slscan calibrate", vsync=False)
-    blank = np.zeros((PANE[1], PANE[0], 3), np.uint8)
-    panes = [pyglet.image.ImageData(PANE[0], PANE[1], "RGB", blank.tobytes()) for _ in range(2)]
-    text = pyglet.text.Label(
-        "", x=6, y=PANE[1] + 150 - 6, width=2 * PANE[0] - 12, multiline=True, anchor_y="top", font_size=10
-    )
-
-    def upload(i: int, rgb: np.ndarray) -> None:
-        rgb = cv2.resize(np.ascontiguousarray(rgb), PANE, interpolation=cv2.INTER_AREA)
-        panes[i].set_data("RGB", -PANE[0] * 3, np.ascontiguousarray(rgb).tobytes())
-
-    def coverage_image(mask: np.ndarray, size: tuple[int, int], base: np.ndarray | None = None) -> np.ndarray:
-        img = base.copy() if base is not None else np.zeros((size[1], size[0], 3), np.uint8)
-        tint = cv2.resize(mask.astype(np.uint8), size, interpolation=cv2.INTER_NEAREST).astype(bool)
-        img[tint] = (0.6 * img[tint] + [0, 90, 0]).astype(np.uint8)
-        return img
-
-    def refresh() -> None:
-        from calibration.board import detect
-
-        live = src.live()
-        det = detect(src.board, live)
-        upload(0, coverage_image(state.camera_coverage(), src.camera_size, overlay(live, det)))
-        prj = coverage_image(state.projector_coverage(), src.projector_size)
-        for p in state.poses:
-            for x, y in p.observation.projector_points:
-                cv2.circle(prj, (round(float(x)), round(float(y))), 3, (255, 255, 0), -1)
-        upload(1, prj)
-        seen = f"board seen ({len(det)} corners)" if det is not None else "NO BOARD in view"
-        keys = (
-            "space capture · u undo · enter solve · s save · n next pose · arrows tilt · wasd move · z/x depth · q quit"
-        )
-        text.text = "\n".join([seen, *state.hints(), *state.messages[-3:], *verdict[-3:], keys])
-
-    @win.event
-    def on_draw() -> None:
-        win.clear()
-        panes[0].blit(0, 0)
-        panes[1].blit(PANE[0], 0)
-        text.draw()
-
-    @win.event
-    def on_key_press(symbol: int, modifiers: int) -> bool:
-        moves = {
-            key.LEFT: ((0, -5), (0, 0, 0)), key.RIGHT: ((0, 5), (0, 0, 0)),
-            key.UP: ((5, 0), (0, 0, 0)), key.DOWN: ((-5, 0), (0, 0, 0)),
-            key.A: ((0, 0), (-10, 0, 0)), key.D: ((0, 0), (10, 0, 0)),
-            key.W: ((0, 0), (0, -10, 0)), key.S: ((0, 0), (0, 10, 0)),
-            key.Z: ((0, 0), (0, 0, -20)), key.X: ((0, 0), (0, 0, 20)),
-        }  # fmt: skip
-        if symbol in (key.ESCAPE, key.Q):
-            pyglet.app.exit()
-        elif symbol == key.SPACE:
-            state.add_pose(src.capture(), src.meta, decode_projector_maps)
-        elif symbol in (key.U, key.BACKSPACE):
-            state.undo()
-        elif symbol == key.N:
-            src.next_suggested()
-        elif symbol == key.ENTER:
-            verdict.clear()
-            if state.solution is None or state.solution.calibration is None:
-                verdict.append(f"verdict: not yet: {len(state.poses)} poses")
-            else:
-                verdict.append(report.verdict(state.solution))
-                verdict.append(src.validation_scan(state.solution.calibration))
-        elif symbol == key.S and state.solution is not None and state.solution.passed:
-            state.solution.calibration.save(out)
-            verdict.append(f"wrote {out}")
-        elif symbol in moves:
-            src.move(*moves[symbol])
-        else:
-            return True
-        refresh()
-        return True
-
-    @win.event
-    def on_close() -> None:
-        pyglet.app.exit()
-
-    refresh()
-    try:
-        pyglet.app.run()
-    except KeyboardInterrupt:
-        pass
-    finally:
-        win.close()
-    print(f"capture saved in {capture_dir} ({len(state.poses)} poses); slscan calibrate --from repeats the solve")
+    window = WizardWindow(SimBoardSource(args.scene, args.seed), out, capture_dir)
+    window.run()
+    n = len(window.state.poses)
+    print(f"capture saved in {capture_dir} ({n} poses); slscan calibrate --from {capture_dir} repeats the solve")
     return 0

@@ -1,0 +1,103 @@
+"""The wizard's operator window on a real X server (Xvfb), driven by scripted keys in a subprocess."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import textwrap
+import time
+
+import pytest
+
+from calibration.model import Calibration
+
+SCRIPT = textwrap.dedent(
+    """
+    import sys
+    from pathlib import Path
+    from calibration.wizard import SimBoardSource, WizardWindow
+    from calibration.solve import MIN_POSES
+
+    tmp = Path(sys.argv[1])
+    src = SimBoardSource("checkerboard", seed=1, supersample=2)
+    w = WizardWindow(src, tmp / "cal.yaml", tmp / "cal.capture")
+    k = w.key
+    w.handle_key(k.S)                      # nothing solved yet: not saved
+    print("EARLY", w.verdict[-1])
+    w.handle_key(k.SPACE)                  # fronto-parallel start pose: kept, no error yet
+    for _ in range(MIN_POSES):
+        w.handle_key(k.N)
+        w.handle_key(k.SPACE)
+    w.handle_key(k.U)                      # undo the last pose
+    w.handle_key(k.N)
+    w.handle_key(k.SPACE)
+    w.handle_key(k.ENTER)                  # verdict + validation scan
+    w.handle_key(k.S)
+    w.win.dispatch_events()
+    w.on_draw()
+    w.win.flip()
+    print("LABEL", w.label.text.replace("\\n", " | "))
+    print("POSES", len(w.state.poses))
+    w.close()
+    """
+)
+
+
+def _xvfb():
+    read_fd, write_fd = os.pipe()
+    proc = subprocess.Popen(
+        ["Xvfb", "-displayfd", str(write_fd), "-screen", "0", "1400x700x24", "-nolisten", "tcp"],
+        pass_fds=(write_fd,),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    os.close(write_fd)
+    number = b""
+    deadline = time.monotonic() + 20
+    with os.fdopen(read_fd, "rb") as pipe:
+        while not number.endswith(b"\n") and time.monotonic() < deadline:
+            chunk = pipe.read(1)
+            if not chunk:
+                break
+            number += chunk
+    if not number.strip().isdigit():
+        proc.kill()
+        pytest.skip("Xvfb did not start")
+    return proc, f":{int(number)}"
+
+
+@pytest.mark.slow
+@pytest.mark.xserver
+def test_wizard_window_guides_to_a_saved_calibration(tmp_path):
+    if shutil.which("Xvfb") is None:
+        pytest.skip("Xvfb is not installed (.ci/run installs it)")
+    proc, display = _xvfb()
+    try:
+        env = {**os.environ, "DISPLAY": display}
+        run = subprocess.run(
+            [sys.executable, "-c", SCRIPT, str(tmp_path)], capture_output=True, text=True, env=env, timeout=600
+        )
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)
+    assert run.returncode == 0, run.stderr[-2000:]
+    out = run.stdout
+    assert "EARLY not saved" in out
+    label = next(line for line in out.splitlines() if line.startswith("LABEL"))
+    assert "board seen (70 corners)" in label
+    assert "verdict: good" in label and "validation scan of the flat board" in label and "wrote" in label
+    assert "POSES 6" in out
+    cal = Calibration.load(tmp_path / "cal.yaml")
+    assert cal.rms["camera_rms"] < 0.2
+    # the capture the wizard saved is a capture `--from` reads: undo removed the undone pose
+    poses = sorted(p.name for p in (tmp_path / "cal.capture").iterdir() if p.name.startswith("pose_"))
+    assert poses == [f"pose_{i:03d}" for i in range(6)]
+
+
+def test_wizard_without_a_display_is_one_line(run_cli, tmp_path):
+    env = {k: v for k, v in os.environ.items() if k != "DISPLAY"}
+    proc = run_cli("calibrate", "--out", tmp_path / "c.yaml", env=env)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1 and "DISPLAY" in proc.stderr
