@@ -412,8 +412,14 @@ def make_sim_rig(config: object) -> SimDevices:
     """Build the simulated camera, projector and trigger from a Config's `sim:` section.
 
     Keys: scene, camera_size, projector_size (as before), and optionally ideal, seed, stepped,
-    bit_depth, effects (a mapping of RigOptions overrides) and faults (see parse_faults).
+    bit_depth, buffer_frames, effects (a mapping of RigOptions overrides) and faults (see
+    parse_faults). Each call builds a new rig; the "sim" registry factories share one per config.
     """
+    return devices_from_bench(bench_from_config(config))
+
+
+def bench_from_config(config: object) -> SimBench:
+    """A new SimBench from a Config's `sim:` section (errors name the file and key)."""
     sim = config.section("sim")
     where = f"{config.path}"
     for key in sim:
@@ -447,38 +453,48 @@ def make_sim_rig(config: object) -> SimDevices:
         buffer_frames=sim.get("buffer_frames", BUFFER_FRAMES),
         **opts,
     )
-    return devices_from_bench(bench)
+    return bench
 
 
-# Registry factories: devices made separately through the registry with the same options share
-# one bench (one rig), so a config that names "sim" for all three gets a consistent set.
+# Registry factories: devices made separately through the registry share one bench (one rig):
+# pass bench=, or config= (the `sim:` section of that Config), or make_bench keyword options;
+# the same config / options give the same bench, so "sim" for all three is a consistent set.
 _SHARED: dict[tuple, SimBench] = {}
 _SHARED_LOCK = threading.Lock()
 
 
-def shared_bench(bench: SimBench | None = None, **options: object) -> SimBench:
+def shared_bench(bench: SimBench | None = None, config: object = None, **options: object) -> SimBench:
     if bench is not None:
         return bench
-    key = tuple(sorted((k, repr(v)) for k, v in options.items()))
+    if config is not None:
+        key: tuple = ("config", str(config.path), repr(config.data.get("sim")))
+    else:
+        key = tuple(sorted((k, repr(v)) for k, v in options.items()))
     with _SHARED_LOCK:
         if key not in _SHARED:
-            _SHARED[key] = make_bench(**options)
+            _SHARED[key] = bench_from_config(config) if config is not None else make_bench(**options)
         return _SHARED[key]
 
 
+def forget_shared_benches() -> None:
+    """Drop the registry's shared benches (a new session starts from fresh rigs)."""
+    with _SHARED_LOCK:
+        _SHARED.clear()
+
+
 @register(CAMERAS, "sim")
-def _sim_camera(bench: SimBench | None = None, **options: object) -> SimCamera:
-    return SimCamera(shared_bench(bench, **options))
+def _sim_camera(bench: SimBench | None = None, config: object = None, **options: object) -> SimCamera:
+    return SimCamera(shared_bench(bench, config, **options))
 
 
 @register(PROJECTORS, "sim")
-def _sim_projector(bench: SimBench | None = None, **options: object) -> SimProjector:
-    return SimProjector(shared_bench(bench, **options))
+def _sim_projector(bench: SimBench | None = None, config: object = None, **options: object) -> SimProjector:
+    return SimProjector(shared_bench(bench, config, **options))
 
 
 @register(TRIGGERS, "sim")
-def _sim_trigger(bench: SimBench | None = None, **options: object) -> SimTrigger:
-    return SimTrigger(shared_bench(bench, **options))
+def _sim_trigger(bench: SimBench | None = None, config: object = None, **options: object) -> SimTrigger:
+    return SimTrigger(shared_bench(bench, config, **options))
 
 
 __all__ = [
@@ -489,6 +505,8 @@ __all__ = [
     "SimDevices",
     "SimProjector",
     "SimTrigger",
+    "bench_from_config",
+    "forget_shared_benches",
     "make_bench",
     "make_sim_rig",
     "parse_faults",

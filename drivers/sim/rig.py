@@ -258,6 +258,16 @@ class VirtualRig:
     def max_value(self) -> int:
         return (1 << self.options.bit_depth) - 1
 
+    def projector_light(self, levels: np.ndarray | int) -> np.ndarray:
+        """True linear light of projector levels 0..255 (1 = full white): black level, brightness, gamma."""
+        o = self.options
+        return o.black_level + o.brightness * (np.asarray(levels, np.float64) / 255.0) ** o.projector_gamma
+
+    def camera_response(self, linear: np.ndarray | float) -> np.ndarray:
+        """True camera output (before quantisation and noise) of a linear signal (1 = full scale)."""
+        x = np.clip(np.asarray(linear, np.float64), 0.0, 1.0)
+        return self.max_value * x ** (1.0 / self.options.camera_gamma)
+
     def set_board_pose(self, rvec: np.ndarray, tvec: np.ndarray) -> None:
         """Pose the scene's calibration board (board frame -> camera, OpenCV rvec/tvec, mm)."""
         board = self.scene.board

@@ -112,3 +112,10 @@ def test_motion_moves_objects_between_frames_and_ground_truth_follows() -> None:
         d = r.ground_truth.depth
         nearest.append(d[d > 0].min())
     assert np.allclose(np.diff(nearest), 5.0, atol=0.05)
+
+
+def test_true_response_helpers_predict_a_flat_level_on_the_white_plane() -> None:
+    r = rig(projector_gamma=2.2, camera_gamma=1.8, black_level=0.03, exposure=0.8)
+    for level in (0, 40, 128, 255):
+        expected = r.camera_response(0.8 * r.projector_light(level))
+        assert abs(float(r.render(flat(level))[5, 5, 1]) - expected) <= 0.5
