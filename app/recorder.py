@@ -56,6 +56,8 @@ class Recorder:
         """Queue one tagged frame; False (and counted) if recording has stopped or cannot keep up."""
         if frame.pattern is None:
             raise ValueError("the recorder only takes tagged frames")
+        if self._closed:
+            return False  # recording was stopped on purpose: nothing is lost
         self.stats.queued += 1
         if not self.active:
             self.stats.not_written += 1
