@@ -54,6 +54,16 @@ class Board:
         """Inner corners in the board frame (N, 3), mm, in OpenCV's order for this board type."""
         return self.texture.corners()
 
+    def board_yaml(self) -> dict:
+        """The board as ARCHITECTURE.md's board.yaml describes it (only its documented fields)."""
+        keys = ("type", "rows", "cols", "square_mm") + (
+            ("marker_mm", "dictionary") if self.spec["type"] == "charuco" else ()
+        )
+        out = {k: self.spec[k] for k in keys if k in self.spec}
+        if self.spec["type"] == "charuco":
+            out.setdefault("dictionary", self.texture.dictionary)
+        return out
+
 
 @dataclass
 class Scene:

@@ -70,6 +70,20 @@ def test_charuco_markers_decode_with_opencv_and_corners_match_the_board_frame() 
     assert np.linalg.norm(corners.reshape(-1, 2) - truth, axis=1).mean() < 0.25
 
 
+def test_board_yaml_has_the_documented_fields() -> None:
+    board = load_scene("charuco").board
+    assert board.board_yaml() == {
+        "type": "charuco", "rows": 8, "cols": 11, "square_mm": 12.0, "marker_mm": 9.0, "dictionary": "DICT_5X5_100"
+    }  # fmt: skip
+    assert load_scene("checkerboard").board.board_yaml() == {
+        "type": "checkerboard",
+        "rows": 7,
+        "cols": 10,
+        "square_mm": 12.0,
+    }
+    assert load_scene("checkerboard").board.object_points().shape == (70, 3)
+
+
 def test_board_pose_needs_a_board_and_a_pose_in_front() -> None:
     rig = VirtualRig.from_preset("plane", camera_size=(160, 120))
     with pytest.raises(InputError, match="no calibration board"):
