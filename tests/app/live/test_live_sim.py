@@ -85,3 +85,28 @@ def test_camera_that_disappears_stops_the_session_with_a_message(tmp_path):
     dump = read_dump(tmp_path / "rec")  # finalised, readable
     assert 5 <= len(dump.frames) <= 14
     assert np.array_equal(dump.load_frame(0).shape, (240, 320, 3))
+
+
+def test_one_shot_and_graycode_run_through_the_same_loop():
+    for scheme, steps in (("one-shot", 12), ("graycode", 0)):
+        session = build_session(None, scheme=scheme, sim_overrides=SMALL)
+        n = len(session.patterns)
+        steps = steps or 2 * n + 4  # Gray-code sets need the pixel check's cycle before them
+        cam = session.sim.camera
+        loop = session.make_loop(timeout_s=3.0)
+        sets = []
+        try:
+            loop.start()
+            for _ in range(steps):
+                ev = loop.step()
+                if ev.frame is not None:
+                    assert cam.truth(ev.frame.frame_id) == ev.frame.pattern
+                if ev.frameset is not None:
+                    sets.append(ev.frameset)
+        finally:
+            loop.close()
+        assert sets, scheme
+        for fs in sets:
+            assert [cam.truth(i) for i in fs.frame_ids] == list(range(n))
+        if scheme == "one-shot":
+            assert len(sets) == loop.stats.tagged
