@@ -15,6 +15,7 @@ late_flip on the camera; reset on the trigger) at given ticks or at random with 
 
 from __future__ import annotations
 
+import bisect
 import threading
 import time
 from collections import deque
@@ -130,14 +131,10 @@ class SimBench:
         return self.t0_ns + round((k + self.tick_offset) * 1e9 / self.rate_hz)
 
     def pattern_at(self, tick: int) -> int | None:
-        """Index shown during tick `tick`: the last show made while the counter was < tick."""
-        shown: int | None = None
-        for c, idx, _ in self.flips:
-            if c < tick:
-                shown = idx
-            else:
-                break
-        return shown
+        """Index shown during tick `tick`: the last show made while the tick count was < tick."""
+        with self.cond:
+            i = bisect.bisect_left(self.flips, tick, key=lambda f: f[0])
+            return self.flips[i - 1][1] if i > 0 else None
 
 
 class SimTrigger:
