@@ -9,6 +9,8 @@ import warnings
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+import cv2
+
 from app.decode.pipeline import EmptyResultWarning, FrameSetDecoder
 from app.dump import Dump, read_dump
 from app.errors import InputError
@@ -46,7 +48,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def _quiet_opencv() -> None:
+    # A corrupt PNG is reported by us, in one line naming the file; OpenCV's own log lines would
+    # only add noise to stderr.
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+
+
 def _init(folder: str, scheme: str, meta: dict, cal: Calibration | None, rng: tuple | None) -> None:
+    _quiet_opencv()
     warnings.simplefilter("ignore", EmptyResultWarning)
     _STATE["dump"] = read_dump(folder)
     _STATE["decoder"] = FrameSetDecoder(scheme, meta, cal, rng)
@@ -73,6 +82,7 @@ def _work(job: tuple[int, tuple[int, ...], str, bool, bool]) -> tuple[int, int]:
 
 
 def run(args: argparse.Namespace) -> int:
+    _quiet_opencv()
     dump = read_dump(args.dump)
     meta = dump.patterns_meta()
     if meta["scheme"] != dump.scheme:

@@ -65,6 +65,7 @@ class TwoShotDecoder:
     ) -> None:
         self.params = params or TwoShotParams()
         self.spec = two_shot_spec(pattern_params, proj_width)
+        self.sequence = tuple(int(v) for v in pattern_params["sequence"])
         self.channels = str(pattern_params["channels"])
         self.unmix = channel_rows(unmixing_matrix(color_mixing), self.channels)
         self.column_range = column_range

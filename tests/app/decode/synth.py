@@ -111,8 +111,8 @@ def render(
     light = acc / supersample
     if blur > 0:
         light = cv2.GaussianBlur(light, (0, 0), blur)
+    img = gain * (light + ambient) * np.asarray(albedo)[None, None, :]  # reflected light
     if cal.color_mixing is not None:
-        light = light @ np.asarray(cal.color_mixing).T
-    img = gain * (light + ambient) * np.asarray(albedo)[None, None, :]
+        img = img @ np.asarray(cal.color_mixing).T  # the camera's channels leak into each other
     img = img + rng.normal(0, noise, img.shape)
     return np.clip(np.rint(img), 0, 255).astype(np.uint8), Truth(depth.astype(np.float32), col_true, lit)

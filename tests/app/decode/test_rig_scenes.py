@@ -1,0 +1,54 @@
+"""Decoders against the virtual rig's ground truth (noise, blur, crosstalk, ambient, gamma on)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from app.bench.accuracy import score
+from app.decode.graycode import decode_graycode
+from app.decode.pipeline import FrameSetDecoder
+from app.patterns import make_patterns
+
+
+def run(rig, scheme):
+    cal = rig.calibration
+    cal.extra["camera_gamma"] = float(rig.options.camera_gamma)
+    ps = make_patterns(scheme, cal.projector_size)
+    meta = {"scheme": scheme, "size": list(ps.size), "images": ps.names, **ps.params}
+    frames = [rig.render(im) for im in ps.images]
+    res = FrameSetDecoder(scheme, meta, cal, rig.depth_range_mm).decode(frames)
+    gt = rig.ground_truth
+    return score(res.stripes.column, res.depth, gt.column, gt.depth, gt.lit), res, ps, frames
+
+
+@pytest.mark.parametrize("scene", ["plane", "steps", "colour_panel"])
+def test_two_shot_on_rig_scenes(small_rig, scene):
+    (coverage, correct, col_rmse, depth_rmse), _, _, _ = run(small_rig(scene), "two-shot")
+    assert correct >= 0.995, f"{scene}: correct {correct:.4f}"
+    assert coverage >= (0.85 if scene == "colour_panel" else 0.9), f"{scene}: coverage {coverage:.4f}"
+    assert col_rmse <= 0.15
+    assert depth_rmse < 1.0
+
+
+def test_occlusion_steps_give_no_wrong_stripes(small_rig):
+    _, res, _, _ = run(small_rig("steps"), "two-shot")
+    gt = small_rig("steps").ground_truth
+    wrong = res.stripes.valid & ~(np.abs(np.nan_to_num(res.stripes.column - gt.column, nan=9)) <= 0.5)
+    assert wrong.sum() <= 0.005 * res.stripes.valid.sum()
+
+
+def test_one_shot_on_a_neutral_plane(small_rig):
+    (coverage, correct, col_rmse, _), _, _, _ = run(small_rig("plane"), "one-shot")
+    assert correct >= 0.99 and coverage >= 0.85 and col_rmse <= 0.2
+
+
+def test_gray_code_columns_and_rows(small_rig):
+    rig = small_rig("plane")
+    (coverage, correct, col_rmse, _), _, ps, frames = run(rig, "graycode")
+    assert correct >= 0.995 and coverage >= 0.98 and col_rmse <= 0.2
+    rows = decode_graycode(frames, ps.params, "row")
+    gt = rig.ground_truth
+    ok = np.isfinite(rows) & gt.lit
+    assert ok.sum() >= 0.98 * gt.lit.sum()
+    assert np.mean(np.abs(rows[ok] - gt.row[ok]) <= 0.5) >= 0.995
