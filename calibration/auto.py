@@ -21,16 +21,13 @@ from calibration.poses import plan_poses
 from calibration.response import level_image, level_plan
 
 DEFAULT_SCENE = "checkerboard"
-BOARD_KEYS = ("type", "rows", "cols", "square_mm", "marker_mm", "dictionary")
 
 
 def rig_board(rig) -> Board:
     """The board.yaml description of the rig scene's board."""
     if rig.board is None:
         raise InputError(f"scene {rig.scene.name!r} has no calibration board (use a board scene, e.g. checkerboard)")
-    spec = {k: v for k, v in rig.board.spec.items() if k in BOARD_KEYS}
-    if spec.get("type") == "charuco":
-        spec.setdefault("dictionary", "DICT_5X5_100")
+    spec = rig.board.board_yaml()
     return board_from_dict(spec, f"scene {rig.scene.name!r}")
 
 

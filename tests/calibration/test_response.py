@@ -25,6 +25,11 @@ def test_recovers_the_rigs_known_response():
     # the off-diagonal leaks themselves within a few percent
     off = ~np.eye(3, dtype=bool)
     assert np.abs(resp.color_mixing[off] / true[off] - 1).max() < 0.05
+    # each channel's curve against the rig's true projector light (black level removed), normalised
+    true_curve = rig.projector_light(resp.levels) - rig.projector_light(0)
+    for c in range(3):
+        got = resp.curves[c] / resp.curves[c, -1]
+        assert np.abs(got - true_curve / true_curve[-1]).max() < 0.02
     # curves rise monotonically from 0
     assert np.all(np.diff(resp.curves, axis=1) > 0) and np.all(resp.curves[:, 0] == 0)
 
