@@ -363,11 +363,19 @@ class SimCamera:
 
 
 class SimDevices(NamedTuple):
+    """`camera, projector, trigger = make_sim_rig(config)`; `.rig` and `.bench` are shared by all three."""
+
     camera: SimCamera
     projector: SimProjector
     trigger: SimTrigger
-    rig: VirtualRig
-    bench: SimBench
+
+    @property
+    def bench(self) -> SimBench:
+        return self.camera.bench
+
+    @property
+    def rig(self) -> VirtualRig:
+        return self.camera.bench.rig
 
 
 # ----------------------------------------------------------------------------- construction
@@ -402,7 +410,7 @@ def make_bench(
 
 
 def devices_from_bench(bench: SimBench) -> SimDevices:
-    return SimDevices(SimCamera(bench), SimProjector(bench), SimTrigger(bench), bench.rig, bench)
+    return SimDevices(SimCamera(bench), SimProjector(bench), SimTrigger(bench))
 
 
 def make_sim_rig(config: object) -> SimDevices:

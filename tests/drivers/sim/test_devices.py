@@ -174,6 +174,8 @@ def test_make_sim_rig_from_config(tmp_path: Path) -> None:
         "  stepped: true\n  effects: {ambient: 0.1}\n  faults: [{kind: drop, at: [2]}]\n"
     )
     dev = make_sim_rig(load_config(cfg))
+    camera, projector, trigger = dev  # the three devices, sharing dev.rig
+    assert camera.bench is projector.bench is trigger.bench is dev.bench
     assert dev.rig.camera_size == SMALL and dev.rig.options.ambient == 0.1 and dev.rig.options.noise is False
     dev.projector.load([GREEN, BLUE])
     dev.trigger.start(60)
