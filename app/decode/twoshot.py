@@ -9,6 +9,7 @@ exactly one channel, whose d crosses zero at the edge: that zero crossing is the
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -26,7 +27,11 @@ class TwoShotParams:
     t_rel: float = 0.2  # |d| must reach this share of the channel's local amplitude
     block: int = 8  # pixels per block of the local-amplitude estimate
     t_rel_edges: float = 0.03  # event mode: a sign (either side of a zero crossing) needs this share
-    label: LabelParams = field(default_factory=lambda: LabelParams(events=True))
+    # "both": stripes from per-channel zero crossings (events) and from pixel runs of one code, merged
+    # (values of one where the other has none; where they disagree by > 0.5 px, none). Measured on
+    # the virtual rig: each alone misses 90 % coverage on some scene, together none does.
+    segmentation: str = "both"
+    label: LabelParams = field(default_factory=LabelParams)
 
 
 def two_shot_spec(pattern_params: dict, proj_width: int) -> WindowSpec:
@@ -119,5 +124,29 @@ class TwoShotDecoder:
         if reversed_order:
             frame1, frame2 = frame2, frame1
         p = self.params
-        code, feat, thr = self.classify(frame1, frame2, want_code=not p.label.events)
-        return label(code, feat, self.spec, p.label, self.column_range, thr)
+        seg = p.segmentation
+        if seg not in ("both", "events", "runs"):
+            raise ValueError(f"segmentation {seg!r} is not both, events or runs")
+        code, feat, thr = self.classify(frame1, frame2, want_code=seg != "events")
+        if seg != "both":
+            lp = dataclasses.replace(p.label, events=seg == "events")
+            return label(code, feat, self.spec, lp, self.column_range, thr)
+        a = label(code, feat, self.spec, dataclasses.replace(p.label, events=True), self.column_range, thr)
+        b = label(code, feat, self.spec, dataclasses.replace(p.label, events=False), self.column_range, thr)
+        merge_maps(a, b)
+        return a
+
+
+def merge_maps(a: StripeMap, b: StripeMap, tol: float = 0.5) -> None:
+    """Fill a's missing values from b; where both have one and they differ by more than tol, none (in place)."""
+    fill = np.isnan(a.column) & np.isfinite(b.column)
+    clash = np.abs(a.column - b.column) > tol  # False where either is NaN
+    a.column[fill] = b.column[fill]
+    a.column[clash] = np.nan
+    a.confidence[fill] = b.confidence[fill]
+    a.confidence[clash] = 0.0
+    if a.chain is not None:
+        a.chain[clash] = -1
+        if b.chain is not None:
+            a.chain[fill] = b.chain[fill] + (int(a.chain.max()) + 1)
+    a.info = {"events": a.info, "runs": b.info, "filled": int(fill.sum()), "clashes": int(clash.sum())}

@@ -7,7 +7,7 @@ import pytest
 from synth import make_calibration, plane_depth, render
 
 from app.decode import reference
-from app.decode.twoshot import TwoShotDecoder
+from app.decode.twoshot import TwoShotDecoder, TwoShotParams
 from app.patterns import two_shot_patterns
 from app.triangulate import Triangulator
 
@@ -62,10 +62,14 @@ def test_swapped_pair_without_the_flag_is_not_the_same(scene):
 
 
 def test_numba_and_numpy_reference_agree(scene):
-    cal, ps, f1, f2, _, tri, dec = scene
+    cal, ps, f1, f2, _, tri, _ = scene
     sub = (slice(100, 140), slice(None))  # a band of rows keeps the Python reference quick
-    a = dec.decode(np.ascontiguousarray(f1[sub]), np.ascontiguousarray(f2[sub]))
-    small = TwoShotDecoder(ps.params, cal.projector_size[0], column_range=(tri.column_lo[sub], tri.column_hi[sub]))
+    small = TwoShotDecoder(
+        ps.params,
+        cal.projector_size[0],
+        column_range=(tri.column_lo[sub], tri.column_hi[sub]),
+        params=TwoShotParams(segmentation="events"),
+    )
     a = small.decode(np.ascontiguousarray(f1[sub]), np.ascontiguousarray(f2[sub]))
     b = reference.decode(small, np.ascontiguousarray(f1[sub]), np.ascontiguousarray(f2[sub]))
     np.testing.assert_array_equal(a.valid, b.valid)
