@@ -99,3 +99,19 @@ def affine3(
     b = _ZERO3 if before is None else np.ascontiguousarray(before, np.float64).reshape(3)
     a = _ZERO3 if after is None else np.ascontiguousarray(after, np.float64).reshape(3)
     return _affine(X, np.ascontiguousarray(M, np.float64), b, a)
+
+
+_WARM: set = set()
+
+
+def warm_up(out_dtype: np.dtype) -> None:
+    """Compile (or load from the cache) the frame kernels for these types now, on tiny arrays,
+    so the first real frame (inside a camera grab with a timeout) does not pay for it."""
+    key = np.dtype(out_dtype).str
+    if key in _WARM:
+        return
+    f3 = np.zeros((2, 2, 3), np.float32)
+    light_to_linear(f3, np.full((2, 2, 2), -1, np.int16), f3, f3, np.eye(3, dtype=np.float32), f3.copy())
+    lut = np.zeros(65536, out_dtype)
+    sensor(f3.reshape(-1), np.zeros(16, np.float32), 0, True, 1e-4, 1e-5, lut, np.zeros(12, out_dtype))
+    _WARM.add(key)

@@ -26,7 +26,7 @@ import numpy as np
 
 from app.errors import InputError
 from calibration.model import Calibration
-from drivers.sim.kernels import affine3, light_to_linear, sensor
+from drivers.sim.kernels import affine3, light_to_linear, sensor, warm_up
 from drivers.sim.optics import Geometry, camera_rays, project
 from drivers.sim.scene import Board, Scene, SceneError, load_scene
 from drivers.sim.shapes import Shape
@@ -139,6 +139,7 @@ class VirtualRig:
         n = w * h * 3
         self._noise_bank = self._rng.standard_normal(2 * n + 4096, dtype=np.float32) if options.noise else None
         self._lut = self._make_lut()
+        warm_up(self._lut.dtype)
         self._base_shapes = list(scene.shapes)
         self.frame_index = 0  # renders so far (drives motion)
         self._motion_step = 0
