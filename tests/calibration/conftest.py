@@ -8,14 +8,21 @@ import pytest
 from calibration.auto import make_rig, rig_board
 from calibration.poses import plan_poses
 
-_RIGS: dict[str, object] = {}
+_RIGS: dict[tuple, object] = {}
 
 
-def rig_for(scene: str):
-    """One rig per board scene per session (construction costs seconds)."""
-    if scene not in _RIGS:
-        _RIGS[scene] = make_rig(scene)
-    return _RIGS[scene]
+def rig_for(scene: str, **overrides: object):
+    """One rig per scene and overrides per session (construction costs seconds); tests pose its board."""
+    key = (scene, *sorted(overrides.items()))
+    if key not in _RIGS:
+        _RIGS[key] = make_rig(scene, **overrides)
+    return _RIGS[key]
+
+
+@pytest.fixture(scope="session")
+def board_rig():
+    """rig_for as a fixture: board_rig("checkerboard", exposure=2.0)."""
+    return rig_for
 
 
 @pytest.fixture(scope="session")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from calibration.auto import make_rig, rig_board
+from calibration.auto import rig_board
 from calibration.board import detect
 from calibration.local_homography import corners_to_projector, fit_homography
 from calibration.poses import plan_poses
@@ -65,10 +65,10 @@ def test_corner_without_enough_decoded_pixels_is_not_guessed():
     assert ok.tolist() == [False, True] and np.isnan(out[0]).all()
 
 
-def test_rig_ground_truth_maps_give_true_projector_corners():
+def test_rig_ground_truth_maps_give_true_projector_corners(board_rig):
     """On the virtual rig (lens distortion, tilted board) with its true projector maps:
     the corner's projector position agrees with projecting the true 3D corner (< 0.05 px)."""
-    rig = make_rig("checkerboard")
+    rig = board_rig("checkerboard")
     board = rig_board(rig)
     truth = rig.calibration
     white = rig.prepare(np.full((rig.projector_size[1], rig.projector_size[0], 3), 255, np.uint8))

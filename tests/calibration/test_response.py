@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calibration.auto import fronto_pose, make_rig, rig_board
+from calibration.auto import fronto_pose, rig_board
 from calibration.response import level_image, level_plan, measure_response
 
 
@@ -14,8 +14,8 @@ def levels_on(rig):
     return [(ch, lv, rig.render(level_image(rig.projector_size, ch, lv))) for ch, lv in level_plan()]
 
 
-def test_recovers_the_rigs_known_response():
-    rig = make_rig("checkerboard")
+def test_recovers_the_rigs_known_response(board_rig):
+    rig = board_rig("checkerboard")
     resp = measure_response(levels_on(rig), camera_gamma=rig.options.camera_gamma)
     assert resp.warnings == []
     # projector gamma 2.2 through a camera of gamma 1.8, with black level, ambient, crosstalk, noise
@@ -35,8 +35,8 @@ def test_recovers_the_rigs_known_response():
 
 
 @pytest.mark.parametrize(("exposure", "words"), [(3.0, "nearly saturated"), (0.04, "too dark")])
-def test_warns_when_a_channel_is_saturated_or_dark(exposure, words):
-    rig = make_rig("checkerboard", exposure=exposure)
+def test_warns_when_a_channel_is_saturated_or_dark(exposure, words, board_rig):
+    rig = board_rig("checkerboard", exposure=exposure)
     resp = measure_response(levels_on(rig), camera_gamma=rig.options.camera_gamma)
     assert len(resp.warnings) == 3 and all(words in w for w in resp.warnings)
     assert "channel R" in resp.warnings[0]

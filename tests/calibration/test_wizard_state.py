@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from app.patterns import graycode_patterns
-from calibration.auto import fronto_pose, make_rig, rig_board
+from calibration.auto import fronto_pose, rig_board
 from calibration.capture import CaptureWriter, open_capture
 from calibration.poses import plan_poses
 from calibration.solve import MIN_POSES
@@ -24,9 +25,10 @@ def test_tilt_directions_and_cells():
     assert m.shape == (6, 8) and m[:3, :4].all() and not m[3:, :].any() and not m[:, 4:].any()
 
 
-def test_poses_added_undone_and_judged(tmp_path):
+@pytest.mark.slow
+def test_poses_added_undone_and_judged(tmp_path, board_rig):
     """Ground-truth projector maps stand in for the decoder: this tests the bookkeeping."""
-    rig = make_rig("checkerboard", supersample=2)  # bookkeeping, not accuracy: a cheaper board render
+    rig = board_rig("checkerboard", supersample=2)  # bookkeeping, not accuracy: a cheaper board render
     board = rig_board(rig)
     pats = graycode_patterns(rig.projector_size)
     meta = {"size": list(pats.size), **pats.params}
