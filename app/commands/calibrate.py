@@ -19,7 +19,7 @@ EPILOG = """\
 examples:
   slscan calibrate --auto --poses 15 --out cal.yaml          # virtual rig, headless; keeps cal.capture/
   slscan calibrate --from cal.capture --out cal2.yaml         # solve a saved capture again
-  slscan calibrate --out rig_cal.yaml                         # interactive wizard on the configured rig
+  slscan calibrate --out cal.yaml                             # operator window (virtual rig so far)
 
 A capture folder holds board.yaml and one Gray-code frame dump per pose (pose_000/, pose_001/, ...),
 plus optional flat colour levels (response/). The calibration file is written only when the solve
@@ -37,7 +37,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     src.add_argument("--auto", action="store_true", help="virtual rig: pose the simulated board automatically")
     p.add_argument("--out", required=True, metavar="FILE", help="calibration YAML to write")
     p.add_argument("--poses", type=int, default=15, metavar="N", help="--auto: number of board poses (default 15)")
-    p.add_argument("--scene", default="checkerboard", help="--auto: board scene preset (checkerboard, charuco)")
+    p.add_argument("--scene", default="checkerboard", help="--auto / wizard: board scene (checkerboard, charuco)")
     p.add_argument("--seed", type=int, default=0, help="--auto: pose and noise seed")
     p.add_argument(
         "--capture",
