@@ -119,3 +119,15 @@ def test_true_response_helpers_predict_a_flat_level_on_the_white_plane() -> None
     for level in (0, 40, 128, 255):
         expected = r.camera_response(0.8 * r.projector_light(level))
         assert abs(float(r.render(flat(level))[5, 5, 1]) - expected) <= 0.5
+
+
+def test_specular_lobe_adds_a_highlight_only_where_it_should() -> None:
+    glossy = VirtualRig.from_preset("cylinder", camera_size=SMALL, ideal=True, shading=True, specular=True)
+    matte = VirtualRig.from_preset("cylinder", camera_size=SMALL, ideal=True, shading=True)
+    a = glossy.render(flat(128)).astype(int).sum(axis=2)
+    b = matte.render(flat(128)).astype(int).sum(axis=2)
+    assert np.all(a >= b)  # a lobe only ever adds light
+    gain = a - b
+    assert gain.max() > 60  # a bright band on the glossy cylinder
+    assert (gain > 10).mean() < 0.3  # ... and not everywhere
+    assert np.all(gain[~glossy.ground_truth.lit] == 0)  # no highlight in projector shadow
