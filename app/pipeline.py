@@ -27,7 +27,7 @@ from app.capture import CaptureLoop, CaptureStats, FrameSet
 from app.decode.stripemap import StripeMap
 from app.errors import SlscanError
 from app.patterns import PatternSet
-from app.recorder import Recorder
+from app.recorder import Recorder, lower_thread_priority
 from calibration.model import Calibration
 from drivers.base import Frame
 
@@ -269,6 +269,9 @@ class LivePipeline:
 
     # -- decoding --------------------------------------------------------------------------
     def _decode_worker(self) -> None:
+        # Capture first, then the recorder, then decoding: a late depth map is only stale, a frame
+        # the capture thread misses is gone (and breaks two pairs).
+        lower_thread_priority(2)
         while True:
             with self._cv:
                 while not self._sets and not self._acq_done.is_set() and not self._stop.is_set():

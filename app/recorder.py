@@ -9,6 +9,7 @@ stays a readable dump (see app/dump.py: each frame is complete before its index 
 
 from __future__ import annotations
 
+import os
 import queue
 import threading
 import time
@@ -19,6 +20,14 @@ from app.dump import DumpWriteError, DumpWriter
 from drivers.base import Frame
 
 _STOP = object()
+
+
+def lower_thread_priority(niceness: int) -> None:
+    """Make the calling thread yield the CPU to the others (Linux: threads have their own nice value)."""
+    try:
+        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), niceness)
+    except (AttributeError, OSError):
+        pass  # not Linux, or not allowed: the default priority still works, with less margin
 
 
 @dataclass
@@ -79,6 +88,7 @@ class Recorder:
             self._failed.set()
 
     def _run(self) -> None:
+        lower_thread_priority(1)  # under CPU contention the capture thread goes first; the queue absorbs it
         while True:
             item = self._q.get()
             if item is _STOP:
