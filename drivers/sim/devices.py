@@ -103,6 +103,8 @@ class SimBench:
         self.ticks = 0  # stepped mode: ticks fired since the bench was made (never reset)
         self.reset_base = 0  # absolute tick at which the trigger box last reset (its counter restarted)
         self._frozen = 0  # real-time counter while stopped
+        self.ever_started = False  # a camera whose trigger never started free-runs
+        self.epoch = 0  # trigger starts so far: a camera resynchronises to a (re)started trigger
         self.tick_offset = 0  # trigger reset support
         self.patterns: list[PreparedPattern] = []
         self.flips: list[tuple[int, int | None, int]] = []  # (absolute tick at show, index, host ns)
@@ -153,7 +155,13 @@ class SimTrigger:
             b.rate_hz = float(rate_hz)
             b.t0_ns = time.monotonic_ns()
             b.tick_offset = -b.ticks if b.stepped else 0
+            if not b.stepped:
+                # real-time ticks count from 0 again: what is on screen stays, as shown "before tick 1"
+                b.flips = [(0, b.flips[-1][1], b.flips[-1][2])] if b.flips else []
+                b.reset_base = 0
             b.running = True
+            b.ever_started = True
+            b.epoch += 1
             b.cond.notify_all()
 
     def stop(self) -> None:
@@ -238,6 +246,7 @@ class SimCamera:
         self._started = False
         self._gone = False
         self._next_tick = 1
+        self._epoch = 0
         self._pending: deque[Frame] = deque()
         self._truth: dict[int, int | None] = {}
         self.dropped = 0  # frames lost to a slow consumer (buffer overrun), not injected faults
@@ -248,6 +257,7 @@ class SimCamera:
         self._started = True
         with self.bench.cond:
             self._next_tick = self.bench._abs_locked() + 1
+            self._epoch = self.bench.epoch
 
     def stop(self) -> None:
         self._started = False
@@ -267,7 +277,7 @@ class SimCamera:
 
     def _render(self, tick: int, pattern_tick: int) -> Frame:
         b = self.bench
-        free_run = not b.running and not b.stepped
+        free_run = not b.ever_started and not b.stepped
         idx = b.pattern_at(pattern_tick)
         light = b.rig.black() if idx is None else b.patterns[idx]
         image = b.rig.render(light)
@@ -291,9 +301,13 @@ class SimCamera:
             return self._pending.popleft()
         deadline = time.monotonic() + timeout_s
         with b.cond:
+            if self._epoch != b.epoch:  # the trigger (re)started since: its first tick is next
+                self._epoch = b.epoch
+                self._next_tick = b._abs_locked() + 1
             while True:
-                if not b.running and not b.stepped:
-                    # free-running without a trigger: expose now with what is shown now
+                if not b.ever_started and not b.stepped:
+                    # free-running, no trigger ever started: expose now with what is shown now
+                    # (once a trigger has run, a stopped trigger means no frames: a timeout)
                     tick = self._next_tick
                     break
                 count = b._abs_locked()

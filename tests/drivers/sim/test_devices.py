@@ -195,3 +195,20 @@ def test_default_config_builds_the_virtual_rig() -> None:
     assert dev.rig.camera_size == tuple(load_config().get("sim.camera_size"))
     with pytest.raises(InputError, match="pattern must be uint8 RGB 1024x768"):
         dev.projector.load([np.zeros((10, 10, 3), np.uint8)])
+
+
+def test_free_run_without_trigger_and_no_frames_once_the_trigger_stops() -> None:
+    bench = make_bench(scene="plane", ideal=True, camera_size=SMALL)
+    cam, proj, trig = devices_from_bench(bench)
+    proj.load([GREEN, BLUE])
+    cam.start()
+    proj.show(1)
+    f = cam.grab(0.2)  # no trigger yet: the camera free-runs on host time
+    assert seen(f) == 1 and f.trigger_count is None
+    trig.start(120)
+    first = cam.grab(1.0)
+    assert first.trigger_count == first.frame_id == 1 and seen(first) == 1  # what was on screen stays
+    trig.stop()
+    with pytest.raises(CameraTimeoutError):
+        for _ in range(20):  # at most the buffered frames, then nothing
+            cam.grab(0.05)
