@@ -25,7 +25,7 @@ def _wrap(v, period):
     return v - period if v >= period else v
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _block_extrema(feat, y, c, block, nb, bmax, bmin, absolute):
     """Per block of `block` pixels along row y: max and min of feat[y, :, c] (or of |feat|)."""
     W = feat.shape[1]
@@ -44,7 +44,7 @@ def _block_extrema(feat, y, c, block, nb, bmax, bmin, absolute):
         bmin[b] = lo
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def twoshot_classify(f1, f2, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, want_code, code, feat, noise):
     """code[y, x] = bits (1 = channel max in frame 1, i.e. frame2 - frame1 < 0), -1 when unsure.
 
@@ -107,7 +107,7 @@ def twoshot_classify(f1, f2, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, 
             code[y, x] = cd if ok else -1
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def oneshot_classify(img, unmix, colour_rows, t_abs, t_margin, block, use_hue, code, feat):
     """code[y, x] = index of the stripe colour (0..N-1), -1 when unsure.
 
@@ -178,7 +178,7 @@ def oneshot_classify(img, unmix, colour_rows, t_abs, t_margin, block, use_hue, c
             code[y, x] = best if (v1 - v2 >= t_margin and v1 > 0) else -1
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _pixel_runs(code, feat, wts, link_ok, y, gap_max, rs, re, rc, link, edge, left, right):
     """Runs of equal code along row y; link and sub-pixel edge (zero crossing) between neighbours."""
     W = code.shape[1]
@@ -230,7 +230,7 @@ def _pixel_runs(code, feat, wts, link_ok, y, gap_max, rs, re, rc, link, edge, le
     return nr
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _sign_events(feat, thr_map, y, c, gap_max, ex, es, et):
     """Events of channel c along row y: 0 = becomes known (sign es), 1 = sign change, 2 = unknown."""
     W = feat.shape[1]
@@ -282,7 +282,7 @@ def _sign_events(feat, thr_map, y, c, gap_max, ex, es, et):
     return n
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _event_runs(feat, noise, y, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right):
     """Two-shot stripes of row y from the zero crossings of each channel's difference.
 
@@ -337,7 +337,7 @@ def _event_runs(feat, noise, y, gap_max, ex, es, et, cnt, rs, re, rc, link, edge
     return nr
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _label_row(
     y,
     nr,
@@ -368,6 +368,7 @@ def _label_row(
     min_frac,
     smooth,
     sm,
+    votes,
     out_col,
     out_chain,
     n_chains,
@@ -487,16 +488,26 @@ def _label_row(
             colrow[xx] = nv[seg] + (xx - nx[seg]) * slope
         shift = 0.0
         if use_range:
+            # each pixel votes for the copy that puts its column inside its depth-range interval
+            span = period * sw
+            for q in range(n_copies):
+                votes[q] = 0
+            for xx in range(xa, xb + 1):
+                v = colrow[xx]
+                q = int(np.ceil((lo[y, xx] - v) / span))
+                if q < 0:
+                    q = 0
+                while q < n_copies:
+                    vq = v + q * span
+                    if vq > hi[y, xx] or vq > proj_w - 0.5:
+                        break
+                    votes[q] += 1
+                    q += 1
             best_q = -1
             best_n = 0
             second_n = 0
             for q in range(n_copies):
-                off = q * period * sw
-                cnt = 0
-                for xx in range(xa, xb + 1):
-                    v = colrow[xx] + off
-                    if v >= lo[y, xx] and v <= hi[y, xx] and v <= proj_w - 0.5:
-                        cnt += 1
+                cnt = votes[q]
                 if cnt > best_n:
                     second_n = best_n
                     best_n = cnt
@@ -521,7 +532,7 @@ def _label_row(
     return n_chains
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def label_rows(
     code,
     feat,
@@ -570,6 +581,7 @@ def label_rows(
     nx = np.empty(n, np.float64)
     nv = np.empty(n, np.float64)
     sm = np.empty(n, np.float64)
+    votes = np.zeros(max(n_copies, 1), np.int64)
     colrow = np.empty(W, np.float64)
     ex = np.empty((m, n), np.float64)
     es = np.empty((m, n), np.int64)
@@ -611,6 +623,7 @@ def label_rows(
             min_frac,
             smooth,
             sm,
+            votes,
             out_col,
             out_chain,
             n_chains,
@@ -618,7 +631,7 @@ def label_rows(
     return n_chains
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def vertical_check(out_col, out_chain, n_chains, tol, min_support):
     """Keep a chain only where the rows above and below confirm it.
 
