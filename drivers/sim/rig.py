@@ -61,6 +61,7 @@ class RigOptions:
     specular: bool = True
     supersample: int = 4  # per axis, reflectance of anti-aliased (board) surfaces
     motion_mm_per_frame: tuple[float, float, float] = (0.0, 0.0, 0.0)  # objects marked `moves`
+    bayer: bool = False  # a single-chip RGGB sensor, demosaiced by OpenCV (the paper used a 3-CCD camera)
 
     def crosstalk_matrix(self) -> np.ndarray:
         c = self.crosstalk
@@ -509,7 +510,22 @@ class VirtualRig:
             self._lut,
             out.reshape(-1),
         )
+        if o.bayer:
+            out = demosaic_rggb(out)
         return out
+
+
+BAYER_RGGB = getattr(cv2, "COLOR_BayerRGGB2RGB", cv2.COLOR_BayerBG2RGB)  # same code, older name
+
+
+def demosaic_rggb(img: np.ndarray) -> np.ndarray:
+    """Keep one channel per photosite (R G / G B), then let OpenCV demosaic it back to RGB."""
+    raw = np.empty(img.shape[:2], img.dtype)
+    raw[0::2, 0::2] = img[0::2, 0::2, 0]
+    raw[0::2, 1::2] = img[0::2, 1::2, 1]
+    raw[1::2, 0::2] = img[1::2, 0::2, 1]
+    raw[1::2, 1::2] = img[1::2, 1::2, 2]
+    return cv2.cvtColor(raw, BAYER_RGGB)
 
 
 def _int_pair(v: object, key: str, where: str) -> tuple[int, int]:

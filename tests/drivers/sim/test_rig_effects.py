@@ -131,3 +131,16 @@ def test_specular_lobe_adds_a_highlight_only_where_it_should() -> None:
     assert gain.max() > 60  # a bright band on the glossy cylinder
     assert (gain > 10).mean() < 0.3  # ... and not everywhere
     assert np.all(gain[~glossy.ground_truth.lit] == 0)  # no highlight in projector shadow
+
+
+def test_bayer_sensor_keeps_flat_colours_and_blurs_one_pixel_stripes() -> None:
+    r = rig(bayer=True)
+    img = r.render(flat((200, 100, 30)))
+    assert np.all(img[2:-2, 2:-2] == (200, 100, 30))
+    from app.patterns import two_shot_patterns
+
+    stripes = two_shot_patterns((1024, 768)).images[0]
+    plain = rig().render(stripes)
+    demosaiced = r.render(stripes)
+    assert demosaiced.shape == plain.shape and demosaiced.dtype == plain.dtype
+    assert np.mean(demosaiced != plain) > 0.2  # interpolation across 2-pixel stripes: false colours
