@@ -281,7 +281,8 @@ def run_headless(session: Session, args: argparse.Namespace, label: str = "live"
         max_frames=frames,
         recorder=recorder,
     )
-    print(f"slscan {label}: {session.scheme} on {describe(session)}, {frames} frames", file=sys.stderr)
+    count = "every frame" if frames >= 10**12 else f"{frames} frames"
+    print(f"slscan {label}: {session.scheme} on {describe(session)}, {count}", file=sys.stderr)
     interrupted = False
     pipe.start()
     try:
