@@ -38,6 +38,7 @@ TARGETS = {
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--calibration-poses", type=int, default=15, metavar="N", help="board poses (default 15)")
     parser.add_argument("--calibration-scene", default="checkerboard", help="board scene (checkerboard, charuco)")
+    parser.add_argument("--calibration-seed", type=int, default=0, metavar="S", help="pose seed (default 0)")
 
 
 def plane_depth(cal, truth, decode) -> dict[str, float]:
@@ -75,7 +76,7 @@ def run(args: argparse.Namespace) -> list[dict]:
     truth = rig.calibration
     with tempfile.TemporaryDirectory(prefix="slscan-bench-cal-") as tmp:
         t0 = time.perf_counter()
-        folder = auto_capture(Path(tmp) / "capture", n, rig=rig)
+        folder = auto_capture(Path(tmp) / "capture", n, rig=rig, seed=int(getattr(args, "calibration_seed", 0)))
         t1 = time.perf_counter()
         result = solve_capture(open_capture(folder))
         t2 = time.perf_counter()
