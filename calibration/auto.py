@@ -70,7 +70,7 @@ def auto_capture(
     for i, (rvec, tvec) in enumerate(poses):
         rig.set_board_pose(rvec, tvec)
         frames = [rig.render(p) for p in prepared]
-        name = writer.add_pose(frames, calibration=truth)
+        name = writer.add_pose(frames, calibration=truth, calibration_is_truth=True)
         if progress:
             tilt = np.degrees(np.linalg.norm(rvec))
             progress(f"{name}: board at {tvec[2]:.0f} mm, tilted {tilt:.0f} deg ({i + 1}/{n_poses})")

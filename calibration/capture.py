@@ -97,8 +97,14 @@ class Capture:
             yield self.read_pose(name)
 
     def true_calibration(self) -> Calibration | None:
-        """The calibration stored in the first pose dump (the virtual rig's truth), if any."""
-        return self.pose_dump(self.poses[0]).calibration() if self.poses else None
+        """The true calibration a simulated capture carries (dump field `calibration_is_truth`), else None.
+
+        A real rig's dump carries the calibration that was in use, which is no truth to score against.
+        """
+        if not self.poses:
+            return None
+        dump = self.pose_dump(self.poses[0])
+        return dump.calibration() if dump.meta.get("calibration_is_truth") is True else None
 
     def has_response(self) -> bool:
         return (self.folder / RESPONSE_DIR / LEVELS_FILE).is_file()
@@ -150,13 +156,18 @@ class CaptureWriter:
         self._frame_id = 0
 
     def add_pose(
-        self, frames: list[np.ndarray], calibration: Calibration | None = None, timestamps_ns: list[int] | None = None
+        self,
+        frames: list[np.ndarray],
+        calibration: Calibration | None = None,
+        timestamps_ns: list[int] | None = None,
+        calibration_is_truth: bool = False,
     ) -> str:
         """Write one pose (frames[p] saw pattern p); returns its folder name."""
         if len(frames) != len(self.patterns):
             raise ValueError(f"{len(frames)} frames for {len(self.patterns)} patterns")
         name = f"pose_{self.count:03d}"
-        with DumpWriter(self.folder / name, self.patterns, calibration) as w:
+        extra = {"calibration_is_truth": True} if calibration is not None and calibration_is_truth else None
+        with DumpWriter(self.folder / name, self.patterns, calibration, extra=extra) as w:
             for p, img in enumerate(frames):
                 ts = timestamps_ns[p] if timestamps_ns else self._frame_id * 16_666_667
                 w.add(img, p, self._frame_id, ts)

@@ -38,8 +38,9 @@ def figures(cal: Calibration) -> str:
 
 def truth_errors(err: dict[str, float]) -> str:
     return (
-        f"vs truth: focal {err['camera_focal_error_pct']:.3f} % (camera), {err['projector_focal_error_pct']:.3f} % "
-        f"(projector); principal point {err['camera_principal_error_px']:.2f} px, "
+        f"vs the rig's true calibration: focal {err['camera_focal_error_pct']:.3f} % (camera), "
+        f"{err['projector_focal_error_pct']:.3f} % (projector); "
+        f"principal point {err['camera_principal_error_px']:.2f} px, "
         f"{err['projector_principal_error_px']:.2f} px; |T| {err['baseline_error_mm']:.3f} mm; "
         f"rotation {err['rotation_error_deg']:.4f} deg"
     )
