@@ -390,6 +390,11 @@ class CaptureLoop:
     def stats(self) -> CaptureStats:
         return self.checker.stats
 
+    @property
+    def stop_requested(self) -> bool:
+        """The operator closed the projector window (or pressed Esc/q in it): end the session cleanly."""
+        return bool(getattr(self.projector, "stop_requested", False))
+
     def start(self) -> None:
         self.camera.start()
         if self.trigger is not None:

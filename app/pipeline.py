@@ -153,6 +153,7 @@ class LivePipeline:
         self.stats = PipelineStats()
         self.capture: CaptureStats = CaptureStats()
         self.error: str | None = None  # why the session stopped early (device fault), for the operator
+        self.stop_reason: str | None = None  # a clean early stop the operator asked for
         self.decode_error: str | None = None
         self.latest: Result | None = None
         self.latest_frame: Frame | None = None
@@ -226,6 +227,9 @@ class LivePipeline:
             self._ready.set()
             n = 0
             while not self._stop.is_set() and (self.max_frames is None or n < self.max_frames):
+                if loop.stop_requested:
+                    self.stop_reason = "the projector window was closed"
+                    break
                 t0 = time.perf_counter()
                 ev = loop.step()
                 self.stats.grab_ms.append((time.perf_counter() - t0) * 1e3)

@@ -234,6 +234,8 @@ class LiveView:
         if self.pipe.error:
             print(f"slscan live: stopped: {self.pipe.error}")
             return 2
+        if self.pipe.stop_reason:
+            print(f"slscan live: stopped cleanly: {self.pipe.stop_reason}")
         return 0
 
 

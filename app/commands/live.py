@@ -316,6 +316,8 @@ def run_headless(session: Session, args: argparse.Namespace, label: str = "live"
     if pipe.error:
         print(f"slscan {label}: stopped: {pipe.error}", file=sys.stderr)
         return 2 if pipe.latest is None else 1
+    if pipe.stop_reason:
+        print(f"slscan {label}: stopped cleanly: {pipe.stop_reason}", file=sys.stderr)
     if interrupted:
         print(f"slscan {label}: interrupted; stopped cleanly", file=sys.stderr)
         return 130

@@ -150,3 +150,29 @@ def test_trigger_reset_mid_session_resyncs_and_never_mispairs():
     # pairs before the reset, then pairs again on the restarted counter (trigger counts start over)
     restarts = [i for i in range(1, len(sets)) if min(sets[i]) < min(sets[i - 1])]
     assert len(restarts) == 1 and restarts[0] >= 10 and len(sets) - restarts[0] >= 10, (sets, loop.stats)
+
+
+def test_projector_window_closed_by_the_operator_stops_cleanly(tmp_path, sim_session):
+    """A projector that reports stop_requested (pyglet: window closed, Esc or q in it) ends the
+    session without an error; the recording is finalised."""
+    from app.commands.live import open_recorder
+    from app.dump import read_dump
+
+    session = build_session(None, sim_overrides=SMALL)
+    rec = open_recorder(session, tmp_path / "rec")
+    seen = []
+
+    def close_window_after_20(frame) -> None:
+        seen.append(frame)
+        if len(seen) == 20:
+            session.sim.projector.stop_requested = True  # what PygletProjector reports after a close
+
+    pipe = LivePipeline(
+        lambda: session.make_loop(timeout_s=3.0), sim_session[1], recorder=rec, on_frame=close_window_after_20
+    )
+    pipe.start()
+    pipe.wait()
+    rec.close()
+    assert pipe.error is None and pipe.stop_reason == "the projector window was closed"
+    assert pipe.capture.frames == 20
+    assert len(read_dump(tmp_path / "rec").frames) == pipe.capture.tagged
