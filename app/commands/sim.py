@@ -21,7 +21,9 @@ examples:
 
 Writes a frame dump (format v1, with the rig's true calibration.yaml and depth_range_mm) and
 DUMP/ground_truth/: depth.tiff (float32 Z mm, 0 = no surface), column.tiff and row.tiff
-(float32 projector coordinates, NaN where not lit), lit.png (255 = visible and lit).
+(float32 projector coordinates, NaN where not lit), lit.png (255 = visible and lit). With
+motion (--set motion_mm_per_frame=[x,y,z]) these are the last frame's, and
+DUMP/ground_truth/frames/NNNNNN/ holds each frame's.
 """
 
 
@@ -83,9 +85,19 @@ def run_scenes(args: argparse.Namespace) -> int:
     return 0
 
 
+def write_ground_truth(gt: object, folder: Path) -> None:
+    """depth.tiff (Z mm, 0 = none), column.tiff / row.tiff (NaN where not lit), lit.png (255 = lit)."""
+    from app.imageio import write_float_tiff, write_rgb
+
+    folder.mkdir(parents=True, exist_ok=True)
+    write_float_tiff(folder / "depth.tiff", gt.depth)
+    write_float_tiff(folder / "column.tiff", gt.column)
+    write_float_tiff(folder / "row.tiff", gt.row)
+    write_rgb(folder / "lit.png", np.where(gt.lit, 255, 0).astype(np.uint8))
+
+
 def run_render(args: argparse.Namespace) -> int:
     from app.dump import DumpWriter
-    from app.imageio import write_float_tiff, write_rgb
     from app.patterns import parse_size
     from drivers.sim.rig import VirtualRig
 
@@ -110,20 +122,19 @@ def run_render(args: argparse.Namespace) -> int:
     patterns = make_patterns(args.scheme, rig.projector_size, **options)
     prepared = [rig.prepare(img) for img in patterns.images]
     extra = {"source": f"slscan sim render --scene {rig.scene.name}"}
+    moving = any(rig.options.motion_mm_per_frame)
+    gt_dir = out / "ground_truth"
     with DumpWriter(out, patterns, rig.calibration, rig.depth_range_mm, extra=extra) as writer:
         frame_ns = round(1e9 / 60)
         n = 0
         for _ in range(args.cycles):
             for i, light in enumerate(prepared):
-                writer.add(rig.render(light), pattern=i, frame_id=n + 1, timestamp_ns=n * frame_ns)
+                rec = writer.add(rig.render(light), pattern=i, frame_id=n + 1, timestamp_ns=n * frame_ns)
+                if moving:  # the scene changes every frame: ground truth per frame as well
+                    write_ground_truth(rig.ground_truth, gt_dir / "frames" / Path(rec.file).stem)
                 n += 1
     gt = rig.ground_truth
-    gt_dir = out / "ground_truth"
-    gt_dir.mkdir()
-    write_float_tiff(gt_dir / "depth.tiff", gt.depth)
-    write_float_tiff(gt_dir / "column.tiff", gt.column)
-    write_float_tiff(gt_dir / "row.tiff", gt.row)
-    write_rgb(gt_dir / "lit.png", np.where(gt.lit, 255, 0).astype(np.uint8))
+    write_ground_truth(gt, gt_dir)
     lit = float(gt.lit.mean())
     w, h = rig.camera_size
     print(

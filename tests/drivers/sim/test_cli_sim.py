@@ -105,3 +105,15 @@ def test_bad_scene_file_impossible_set_up_and_bad_options_are_one_line(capsys, t
     assert (tmp_path / "full" / "x").read_text() == "keep me"
     for name in "bcde":
         assert not (tmp_path / name).exists()
+
+
+def test_sim_render_with_motion_writes_ground_truth_per_frame(capsys, tmp_path: Path) -> None:
+    out = tmp_path / "moving"
+    args = ["sim", "render", "--scene", "cube", "--scheme", "two-shot", "--camera-size", "160x120", "--ideal"]
+    assert main([*args, "--set", "motion_mm_per_frame=[0, 0, 4]", "--cycles", "2", "--out", str(out)]) == 0
+    dump = read_dump(out)
+    assert len(dump.frames) == 4
+    depths = [read_float_tiff(out / "ground_truth" / "frames" / f"{i:06d}" / "depth.tiff") for i in range(4)]
+    centre = [d[40:80, 60:100][d[40:80, 60:100] > 0].min() for d in depths]
+    assert np.allclose(np.diff(centre), 4.0, atol=0.2)  # the cube moves 4 mm away per frame
+    assert np.array_equal(read_float_tiff(out / "ground_truth" / "depth.tiff"), depths[-1])
