@@ -10,9 +10,13 @@ flip log says the projector showed at that tick. The frame is refused (counted, 
 - the flip at its tick was late (the camera may have seen the previous pattern),
 - a tag reported by the device (trigger-box phase marker, a camera line input) disagrees,
 - its frame_id repeats or goes back (a duplicate or a swap in delivery), or its image is a byte-for-
-  byte repeat of the previous frame (a duplicated buffer under a new id).
+  byte repeat of the previous frame (a duplicated buffer under a new id),
+- its pixels repeat the previous pattern instead of alternating (a flip that came late and left
+  no trace in any counter: `check_alternation`).
 
-A frame_id gap (a dropped frame) only breaks the current pair. The pure part (`FrameChecker`) has
+A frame_id gap (a dropped frame) only breaks the current pair. What no check can see is a
+projector late on *every* refresh (the whole stream one pattern behind, alternating perfectly):
+that needs the trigger box's phase marker as a device tag, or the flip times. The pure part (`FrameChecker`) has
 no devices and no clock, so the pairing rules are unit-tested directly; `CaptureLoop` drives the
 devices. Grouping uses `app.framesets.group_frame_sets` on the last frames, so the live session and
 `slscan decode` follow one rule.
