@@ -13,6 +13,7 @@ or the column (rows).
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from app.decode.stripemap import StripeMap
@@ -60,10 +61,19 @@ def _subpixel(p: np.ndarray, valid: np.ndarray, diffs: np.ndarray) -> np.ndarray
     return out
 
 
-def decode_graycode(frames: list[np.ndarray], params: dict, kind: str = "column", t_valid: float = 15.0) -> np.ndarray:
+def decode_graycode(
+    frames: list[np.ndarray],
+    params: dict,
+    kind: str = "column",
+    t_valid: float = 15.0,
+    t_bit: float = 0.15,
+    t_spill: float = 0.25,
+) -> np.ndarray:
     """Sub-pixel projector column (kind='column') or row ('row') per camera pixel, NaN = none.
 
-    t_valid: minimum white - black, summed over R, G, B, in 8-bit steps.
+    t_valid: minimum white - black, summed over R, G, B, in 8-bit steps; t_bit: a bit whose
+    |pattern - inverse| is below this share of white - black is weak; t_spill: white - black below
+    this share of its 7x7 neighbourhood's maximum is blur spilled into a shadow.
     """
     roles = params["frames"]
     if len(frames) != len(roles):
@@ -75,14 +85,23 @@ def decode_graycode(frames: list[np.ndarray], params: dict, kind: str = "column"
     idx = {(r["kind"], r.get("bit"), r.get("inverse", False)): i for i, r in enumerate(roles)}
     white = _grey(frames[idx[("white", None, False)]])
     black = _grey(frames[idx[("black", None, False)]])
-    valid = (white - black) > t_valid
+    contrast = white - black
+    # light spilled into a shadow by lens blur is much weaker than its lit neighbours
+    near_max = cv2.dilate(contrast, np.ones((7, 7), np.uint8))
+    valid = (contrast > t_valid) & (contrast >= t_spill * near_max)
     nbits = int(params[f"{kind}_bits"])
     gray = np.zeros(shape[:2], np.int64)
     diffs = np.empty((nbits, *shape[:2]), np.float32)
+    contrast = np.maximum(contrast, 1e-3)
+    weak = np.zeros(shape[:2], np.int32)
     for b in range(nbits):
         d = _grey(frames[idx[(kind, b, False)]]) - _grey(frames[idx[(kind, b, True)]])
         diffs[b] = d
         gray |= (d > 0).astype(np.int64) << b
+        weak += np.abs(d) < t_bit * contrast
+    # Only one bit is ever on its own edge at a pixel (Gray code); more weak bits mean a pixel
+    # straddling a shadow or depth edge, or light from elsewhere: no value.
+    valid &= weak <= 1
     p = gray.copy()
     shift = gray >> 1
     while shift.any():
