@@ -18,6 +18,7 @@ g = cos(incidence) * (d_ref / d)^2 where lit (0 in projector shadow or outside i
 from __future__ import annotations
 
 import dataclasses
+import threading
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
@@ -142,6 +143,7 @@ class VirtualRig:
         self._lut = self._make_lut()
         warm_up(self._lut.dtype)
         self._base_shapes = list(scene.shapes)
+        self._lock = threading.RLock()  # a render never sees half of a re-precomputation
         self.frame_index = 0  # renders so far (drives motion)
         self._motion_step = 0
         self._black: PreparedPattern | None = None
@@ -280,11 +282,18 @@ class VirtualRig:
         if not (np.all(np.isfinite(rvec)) and np.all(np.isfinite(tvec))) or tvec[2] <= 0:
             raise InputError(f"board pose rvec={rvec.tolist()} tvec={tvec.tolist()} is not in front of the camera")
         R, _ = cv2.Rodrigues(rvec)
-        shape = dataclasses.replace(self._base_shapes[board.shape_index], R=R, c=tvec)
-        self._base_shapes[board.shape_index] = shape
-        self.scene.shapes[board.shape_index] = shape
-        board.rvec, board.tvec = rvec, tvec
-        self._precompute(self._current_shapes())
+        i = board.shape_index
+        old = (self._base_shapes[i], board.rvec, board.tvec)
+        shape = dataclasses.replace(old[0], R=R, c=tvec)
+        with self._lock:
+            self._base_shapes[i] = self.scene.shapes[i] = shape
+            board.rvec, board.tvec = rvec, tvec
+            try:
+                self._precompute(self._current_shapes())
+            except InputError:  # e.g. posed out of view: keep the previous pose, say why
+                self._base_shapes[i] = self.scene.shapes[i] = old[0]
+                board.rvec, board.tvec = old[1], old[2]
+                raise
 
     def board_corners_image(self) -> np.ndarray:
         """True camera pixel coordinates (N, 2) of the board's inner corners at its current pose."""
@@ -379,11 +388,11 @@ class VirtualRig:
         maps = np.full((npx, 2), -1, np.int16)
         lit_idx = idx[lit]
         maps[lit_idx] = np.floor(uvp[lit] + 0.5).astype(np.int16)
+        if not lit.any():
+            raise InputError(f"{where}: impossible set-up: the projector lights nothing the camera sees")
         self._coef = coef_img.reshape(h, w, 3)
         self._ambient = amb_img.reshape(h, w, 3)
         self._map = maps.reshape(h, w, 2)
-        if not lit.any():
-            raise InputError(f"{where}: impossible set-up: the projector lights nothing the camera sees")
         # ground truth
         depth = np.zeros(npx, np.float32)
         depth[idx] = X[:, 2]
@@ -472,14 +481,15 @@ class VirtualRig:
         None means the projector is dark. Noise differs per call and is deterministic per seed.
         With motion, each call advances the moving objects by one frame and updates ground truth.
         """
-        if any(self.options.motion_mm_per_frame) and self.frame_index > 0:
-            self._motion_step = self.frame_index
-            self._precompute(self._current_shapes())
-        self.frame_index += 1
         prepared = pattern if isinstance(pattern, PreparedPattern) else None
         if prepared is None:
             prepared = self.black() if pattern is None else self.prepare(pattern)
-        return self._form(prepared.linear)
+        with self._lock:
+            if any(self.options.motion_mm_per_frame) and self.frame_index > 0:
+                self._motion_step = self.frame_index
+                self._precompute(self._current_shapes())
+            self.frame_index += 1
+            return self._form(prepared.linear)
 
     def _form(self, light: np.ndarray) -> np.ndarray:
         o = self.options

@@ -91,6 +91,11 @@ def test_board_pose_needs_a_board_and_a_pose_in_front() -> None:
     board = VirtualRig.from_preset("checkerboard", camera_size=(160, 120))
     with pytest.raises(InputError, match="not in front"):
         board.set_board_pose(np.zeros(3), np.array([0, 0, -700.0]))
+    before = board.board_corners_image()
+    with pytest.raises(InputError, match="camera sees no surface"):
+        board.set_board_pose(np.zeros(3), np.array([3000.0, 0, 700.0]))  # out of view
+    assert np.array_equal(board.board_corners_image(), before)  # the previous pose stays
+    assert board.ground_truth.lit.any() and board.render(None).any()
 
 
 BASE = {
