@@ -69,13 +69,22 @@ def run(args: argparse.Namespace) -> list[dict]:
                     "scheme": scheme,
                     "scene": scene,
                     "shots": len(frames),
-                    "coverage": round(cov, 4),
-                    "correct": round(cor, 4),
-                    "column_rmse_px": round(crm, 4),
-                    "depth_rmse_mm": round(drm, 4),
+                    "coverage": _num(cov),
+                    "correct": _num(cor),
+                    "column_rmse_px": _num(crm),
+                    "depth_rmse_mm": _num(drm),
                 }
             )
     return rows
+
+
+def _num(x: float) -> float | None:
+    """Rounded, or None (JSON null) where there is nothing to measure."""
+    return round(x, 4) if np.isfinite(x) else None
+
+
+def _f(x: float | None, scale: float = 1.0, width: int = 8, prec: int = 2) -> str:
+    return f"{'-':>{width}s}" if x is None else f"{scale * x:{width}.{prec}f}"
 
 
 def format_table(rows: list[dict]) -> str:
@@ -85,7 +94,7 @@ def format_table(rows: list[dict]) -> str:
     ]
     for r in rows:
         lines.append(
-            f"{r['scheme']:9s} {r['scene']:13s} {r['shots']:5d} {100 * r['coverage']:8.2f}% {100 * r['correct']:7.2f}% "
-            f"{r['column_rmse_px']:11.3f} {r['depth_rmse_mm']:13.3f}"
+            f"{r['scheme']:9s} {r['scene']:13s} {r['shots']:5d} {_f(r['coverage'], 100)}% {_f(r['correct'], 100, 7)}% "
+            f"{_f(r['column_rmse_px'], 1, 11, 3)} {_f(r['depth_rmse_mm'], 1, 13, 3)}"
         )
     return "\n".join(lines)
