@@ -13,8 +13,8 @@ from app.decode.twoshot import TwoShotDecoder
 from app.patterns import window_table
 
 
-def classify(dec: TwoShotDecoder, f1: np.ndarray, f2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unmixed linear differences (H, W, m) and the per-pixel sign thresholds (event mode)."""
+def classify(dec: TwoShotDecoder, f1: np.ndarray, f2: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-pixel codes (-1 = none), unmixed linear differences (H, W, m), sign thresholds (event mode)."""
     lin, dlin = dec.luts(f1.dtype)
     ch = np.arange(3)
     d = lin[ch, f2] - lin[ch, f1]  # (H, W, 3)
@@ -32,7 +32,10 @@ def classify(dec: TwoShotDecoder, f1: np.ndarray, f2: np.ndarray) -> tuple[np.nd
     right = np.concatenate([bmax[:, 1:], bmax[:, :1] * 0], axis=1)
     amp = np.maximum(bmax, np.maximum(left, right))[:, np.arange(W) // block]
     thr = np.maximum(noise, dec.params.t_rel_edges * amp)
-    return feat, thr
+    signed = np.abs(feat) >= np.maximum(noise, dec.params.t_rel * amp)
+    bits = ((feat < 0) << np.arange(m)).sum(axis=2)
+    code = np.where(signed.all(axis=2), bits, -1)
+    return code, feat, thr
 
 
 def _channel_events(d: np.ndarray, thr: np.ndarray, gap_max: int) -> list[tuple[float, int, int]]:
@@ -76,12 +79,66 @@ def _intervals(feat_row: np.ndarray, thr_row: np.ndarray, gap_max: int):
         if active:
             code = sum(1 << i for i in range(m) if sign[i] < 0)
             iv.append([x, x, code, was and kind == 1])
-    return iv
+    return [[a, b, c, lk, b] for a, b, c, lk in iv]  # the edge after a stripe is where it ends
+
+
+def _runs(code_row: np.ndarray, feat_row: np.ndarray, spec, gap_max: int):
+    """Intervals from pixel runs of one code; edges at the zero crossing of the flipping channel."""
+    iv: list[list] = []
+    x, W = 0, len(code_row)
+    while x < W:
+        if code_row[x] < 0:
+            x += 1
+            continue
+        s = x
+        while x + 1 < W and code_row[x + 1] == code_row[s]:
+            x += 1
+        iv.append([s, x, int(code_row[s])])
+        x += 1
+    out = []
+    for j, (rs, re, c) in enumerate(iv):
+        linked = False
+        if j > 0:
+            _, pre, pc = iv[j - 1]
+            linked = bool(rs - pre - 1 <= gap_max and spec.link_ok[pc, c])
+        out.append([rs - 0.5, re + 0.5, c, linked, re + 0.5])
+    for j in range(len(iv) - 1):
+        if not out[j + 1][3]:
+            continue
+        rs, re, a = iv[j]
+        nrs, nre, b = iv[j + 1]
+        xa = re - 1 if re - 1 >= rs else re
+        xb = nrs + 1 if nrs + 1 <= nre else nrs
+        mid = 0.5 * (re + nrs)
+        sig = feat_row @ spec.weights[a, b]
+        best, bestd = mid, 1e9
+        for xx in range(xa, xb):
+            s0, s1 = sig[xx], sig[xx + 1]
+            if s0 > 0 and s1 <= 0:
+                xz = xx + s0 / (s0 - s1)
+                if abs(xz - mid) < bestd:
+                    best, bestd = xz, abs(xz - mid)
+        out[j][4] = best
+    return out
 
 
 def decode(dec: TwoShotDecoder, f1: np.ndarray, f2: np.ndarray) -> StripeMap:
+    """The decoder's segmentation setting: 'events', 'runs' or 'both' (merged)."""
+    seg = dec.params.segmentation
+    if seg == "both":
+        a = _decode(dec, f1, f2, True)
+        b = _decode(dec, f1, f2, False)
+        fill = np.isnan(a.column) & np.isfinite(b.column)
+        clash = np.abs(a.column - b.column) > 0.5
+        a.column[fill] = b.column[fill]
+        a.column[clash] = np.nan
+        return a
+    return _decode(dec, f1, f2, seg == "events")
+
+
+def _decode(dec: TwoShotDecoder, f1: np.ndarray, f2: np.ndarray, events: bool) -> StripeMap:
     spec, lp = dec.spec, dec.params.label
-    feat, thr = classify(dec, f1, f2)
+    code, feat, thr = classify(dec, f1, f2)
     H, W, _ = feat.shape
     table = window_table(dec.sequence, spec.k)
     P, k, sw = spec.period, spec.k, spec.stripe_width
@@ -89,7 +146,7 @@ def decode(dec: TwoShotDecoder, f1: np.ndarray, f2: np.ndarray) -> StripeMap:
     chain_id = np.full((H, W), -1, np.int32)
     n_chains = 0
     for y in range(H):
-        iv = _intervals(feat[y], thr[y], lp.gap_max)
+        iv = _intervals(feat[y], thr[y], lp.gap_max) if events else _runs(code[y], feat[y], spec, lp.gap_max)
         n = len(iv)
         codes = [v[2] for v in iv]
         linked = [iv[j + 1][3] for j in range(n - 1)] + [False]
@@ -121,7 +178,7 @@ def decode(dec: TwoShotDecoder, f1: np.ndarray, f2: np.ndarray) -> StripeMap:
             i += 1
             if i1 - i0 + 1 < k:
                 continue
-            nx = np.array([iv[r][1] for r in range(i0, i1)], np.float64)
+            nx = np.array([iv[r][4] for r in range(i0, i1)], np.float64)
             nv = np.array([(lab[i0] + r - i0 + 1) * sw - 0.5 for r in range(i0, i1)], np.float64)
             for r in range(1, len(nx)):
                 if nx[r] <= nx[r - 1]:

@@ -61,17 +61,19 @@ def test_swapped_pair_without_the_flag_is_not_the_same(scene):
     assert not np.allclose(np.nan_to_num(wrong), np.nan_to_num(dec.decode(f1, f2).column))
 
 
-def test_numba_and_numpy_reference_agree(scene):
+@pytest.mark.parametrize("segmentation", ["events", "runs", "both"])
+def test_numba_and_numpy_reference_agree(scene, segmentation):
     cal, ps, f1, f2, _, tri, _ = scene
-    sub = (slice(100, 140), slice(None))  # a band of rows keeps the Python reference quick
+    sub = (slice(100, 130), slice(None))  # a band of rows keeps the Python reference quick
     small = TwoShotDecoder(
         ps.params,
         cal.projector_size[0],
         column_range=(tri.column_lo[sub], tri.column_hi[sub]),
-        params=TwoShotParams(segmentation="events"),
+        params=TwoShotParams(segmentation=segmentation),
     )
-    a = small.decode(np.ascontiguousarray(f1[sub]), np.ascontiguousarray(f2[sub]))
-    b = reference.decode(small, np.ascontiguousarray(f1[sub]), np.ascontiguousarray(f2[sub]))
+    g1, g2 = np.ascontiguousarray(f1[sub]), np.ascontiguousarray(f2[sub])
+    a = small.decode(g1, g2)
+    b = reference.decode(small, g1, g2)
     np.testing.assert_array_equal(a.valid, b.valid)
     assert a.valid.sum() > 0.8 * a.valid.size
     np.testing.assert_allclose(a.column[a.valid], b.column[b.valid], atol=1e-3)
