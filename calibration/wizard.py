@@ -5,9 +5,12 @@ no board is seen) and the camera-field coverage; right: the projector-field cove
 pose count against the minimum and recommended counts, the tilt directions still missing, each
 pose's error as soon as it is captured, and the verdict.
 
-Keys: space = capture a pose, u / backspace = undo the last pose, enter = verdict and a
-flat-board validation scan, s = save the calibration (once the solve passes), q / esc = quit.
-On the virtual rig the board is moved with the keyboard: n = next suggested pose, arrows = tilt,
+Keys: space = capture a pose, u / backspace = undo the last pose, c = colour response (flat
+levels per channel: curves, colour mixing, a warning when a channel is nearly saturated or too
+dark), enter = verdict and a flat-board validation scan, s = save the calibration (once the solve
+passes), q / esc = quit.
+On the virtual rig the board is moved with the keyboard: n = next suggested pose, f = flat and
+facing the camera, arrows = tilt,
 i/j/k/l = move, z/x = nearer/farther.
 
 So far the wizard drives the virtual rig only; on real hardware, record the poses with the
@@ -29,6 +32,7 @@ from calibration.auto import fronto_pose, make_rig, rig_board
 from calibration.capture import CaptureWriter
 from calibration.correspondence import decode_projector_maps
 from calibration.poses import plan_poses
+from calibration.response import Response, level_image, level_plan, measure_response
 from calibration.validate import plane_scan
 from calibration.wizard_state import WizardState, overlay
 
@@ -75,6 +79,11 @@ class SimBoardSource:
         self.tvec = centre - R @ centre_b
         self.rig.set_board_pose(self.rvec, self.tvec)
 
+    def flat(self) -> None:
+        """The board facing the camera in the middle of the working range (colour levels, validation)."""
+        self.rvec, self.tvec = fronto_pose(self.board, self.rig)
+        self.rig.set_board_pose(self.rvec, self.tvec)
+
     def next_suggested(self) -> None:
         self.rvec, self.tvec = self.suggested[self.k % len(self.suggested)]
         self.k += 1
@@ -84,6 +93,14 @@ class SimBoardSource:
         if self._prepared is None:
             self._prepared = [self.rig.prepare(img) for img in self.patterns.images]
         return [self.rig.render(p) for p in self._prepared]
+
+    def levels(self) -> list[tuple[str, int, np.ndarray]]:
+        """Flat colour levels per channel on the board held where it is."""
+        return [(ch, lv, self.rig.render(level_image(self.projector_size, ch, lv))) for ch, lv in level_plan()]
+
+    @property
+    def camera_gamma(self) -> float:
+        return float(self.rig.options.camera_gamma)
 
     def validation_scan(self, cal) -> str:
         """Scan the board held flat and facing the camera; plane-fit residual of the result."""
@@ -112,6 +129,7 @@ class WizardWindow:
         writer = CaptureWriter(capture_dir, src.board, src.patterns)
         self.state = WizardState(src.board, src.camera_size, src.projector_size, writer)
         self.verdict: list[str] = []
+        self.response: Response | None = None
         self.win = pyglet.window.Window(2 * PANE[0], PANE[1] + 150, caption="slscan calibrate", vsync=False)
         blank = np.zeros((PANE[1], PANE[0], 3), np.uint8)
         self.panes = [pyglet.image.ImageData(PANE[0], PANE[1], "RGB", blank.tobytes()) for _ in range(2)]
@@ -152,8 +170,11 @@ class WizardWindow:
                 cv2.circle(prj, (round(float(x)), round(float(y))), 3, (255, 255, 0), -1)
         self.upload(1, prj)
         seen = f"board seen ({len(det)} corners)" if det is not None else "NO BOARD in view"
-        keys = "space capture · u undo · enter verdict · s save · n next pose · arrows tilt · ijkl move · z/x depth · q"
-        self.label.text = "\n".join([seen, *state.hints(), *state.messages[-3:], *self.verdict[-3:], keys])
+        keys = (
+            "space capture · u undo · c colour · enter verdict · s save · "
+            "n next pose · f flat · arrows tilt · ijkl move · z/x depth · q quit"
+        )
+        self.label.text = "\n".join([seen, *state.hints(), *state.messages[-3:], *self.verdict[-4:], keys])
 
     def handle_key(self, symbol: int) -> None:
         key, state, src = self.key, self.state, self.src
@@ -163,6 +184,8 @@ class WizardWindow:
             state.undo()
         elif symbol == key.N:
             src.next_suggested()
+        elif symbol == key.F:
+            src.flat()
         elif symbol == key.ENTER:
             self.verdict.clear()
             if state.solution is None or state.solution.calibration is None:
@@ -170,9 +193,16 @@ class WizardWindow:
             else:
                 self.verdict.append(report.verdict(state.solution))
                 self.verdict.append(src.validation_scan(state.solution.calibration))
+        elif symbol == key.C:
+            self.measure_colour()
         elif symbol == key.S:
             if state.solution is not None and state.solution.passed:
-                state.solution.calibration.save(self.out)
+                cal = state.solution.calibration
+                if self.response is not None:
+                    cal.color_mixing = self.response.color_mixing
+                    cal.extra.update(self.response.as_extra())
+                    cal.extra["camera_gamma"] = self.src.camera_gamma
+                cal.save(self.out)
                 self.verdict.append(f"wrote {self.out}")
             else:
                 self.verdict.append("not saved: the solve has not passed its checks yet")
@@ -181,6 +211,24 @@ class WizardWindow:
         else:
             return
         self.refresh()
+
+    def measure_colour(self) -> None:
+        """Flat levels per channel: response curves, colour mixing, saturation / darkness warnings."""
+        import shutil
+
+        from calibration.capture import RESPONSE_DIR
+
+        levels = self.src.levels()
+        try:
+            self.response = measure_response(levels, camera_gamma=self.src.camera_gamma)
+        except ValueError as exc:
+            self.verdict.append(f"colour response: {exc}")
+            return
+        writer = self.state.writer
+        if writer is not None:
+            shutil.rmtree(writer.folder / RESPONSE_DIR, ignore_errors=True)  # the latest measurement wins
+            writer.write_response(levels, camera_gamma=self.src.camera_gamma)
+        self.verdict.extend(report.response_text(self.response).splitlines())
 
     def on_draw(self) -> None:
         self.win.clear()

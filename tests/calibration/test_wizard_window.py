@@ -33,6 +33,12 @@ SCRIPT = textwrap.dedent(
     w.handle_key(k.U)                      # undo the last pose
     w.handle_key(k.N)
     w.handle_key(k.SPACE)
+    w.handle_key(k.C)                      # colour levels at the last (near, bright) pose
+    print("NEAR", " | ".join(w.verdict))
+    w.verdict.clear()
+    w.handle_key(k.F)                      # board flat, mid-range: measure again
+    w.handle_key(k.C)
+    print("COLOUR", " | ".join(w.verdict))
     w.handle_key(k.ENTER)                  # verdict + validation scan
     w.handle_key(k.S)
     w.win.dispatch_events()
@@ -89,8 +95,15 @@ def test_wizard_window_guides_to_a_saved_calibration(tmp_path):
     assert "board seen (70 corners)" in label
     assert "verdict: good" in label and "validation scan of the flat board" in label and "wrote" in label
     assert "POSES 6" in out
+    colour = next(line for line in out.splitlines() if line.startswith("COLOUR"))
+    assert "colour response: gamma R 2.1" in colour or "colour response: gamma R 2.2" in colour
+    assert "warning" not in colour
+    near = next(line for line in out.splitlines() if line.startswith("NEAR"))
+    assert "warning: channel R is nearly saturated" in near  # the near pose's white clips: said
     cal = Calibration.load(tmp_path / "cal.yaml")
     assert cal.rms["camera_rms"] < 0.2
+    assert cal.color_mixing is not None and abs(cal.color_mixing[0, 1] - 0.0909) < 0.01
+    assert cal.extra["camera_gamma"] == 1.8 and (tmp_path / "cal.capture" / "response" / "levels.yaml").is_file()
     # the capture the wizard saved is a capture `--from` reads: undo removed the undone pose
     poses = sorted(p.name for p in (tmp_path / "cal.capture").iterdir() if p.name.startswith("pose_"))
     assert poses == [f"pose_{i:03d}" for i in range(6)]
