@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 import re
+import shutil
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -179,8 +180,6 @@ class CaptureWriter:
         """Undo: delete the last pose folder (the wizard's undo key)."""
         if self.count == 0:
             return None
-        import shutil
-
         self.count -= 1
         name = f"pose_{self.count:03d}"
         shutil.rmtree(self.folder / name, ignore_errors=True)
