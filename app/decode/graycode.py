@@ -13,6 +13,8 @@ or the column (rows).
 
 from __future__ import annotations
 
+import itertools
+
 import cv2
 import numpy as np
 
@@ -25,7 +27,41 @@ def _grey(img: np.ndarray) -> np.ndarray:
     return g / 257.0 if img.dtype == np.uint16 else g
 
 
-def _subpixel(p: np.ndarray, valid: np.ndarray, diffs: np.ndarray) -> np.ndarray:
+def _smooth(nx: np.ndarray, nv: np.ndarray, h: int) -> tuple[np.ndarray, np.ndarray]:
+    """Replace each boundary position by a straight-line fit x(v) over +-h neighbouring boundaries.
+
+    Only boundaries that follow each other (positions one apart, a few pixels apart) are fitted
+    together: single zero crossings are noisy, the surface is smooth over a few columns.
+    """
+    n = len(nx)
+    if h <= 0 or n < 2 * h + 1:
+        return nx, nv
+    brk = np.flatnonzero((np.abs(np.diff(nv)) != 1) | (np.diff(nx) >= 8)) + 1
+    gs = np.zeros(n, np.int64)  # group start / end (exclusive) of every node
+    ge = np.zeros(n, np.int64)
+    edges = np.concatenate([[0], brk, [n]])
+    for a, b in itertools.pairwise(edges):
+        gs[a:b], ge[a:b] = a, b
+    i = np.arange(n)
+    a0 = np.clip(i - h, gs, None)
+    a1 = np.minimum(a0 + 2 * h + 1, ge)
+    a0 = np.maximum(a1 - 2 * h - 1, gs)
+    c = np.concatenate([[0.0], np.cumsum(nv)])
+    cx = np.concatenate([[0.0], np.cumsum(nx)])
+    cvv = np.concatenate([[0.0], np.cumsum(nv * nv)])
+    cvx = np.concatenate([[0.0], np.cumsum(nv * nx)])
+    m = (a1 - a0).astype(np.float64)
+    sv, sx = c[a1] - c[a0], cx[a1] - cx[a0]
+    svv, svx = cvv[a1] - cvv[a0], cvx[a1] - cvx[a0]
+    den = svv - sv * sv / m
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slope = np.where(den > 0, (svx - sv * sx / m) / den, 0.0)
+    fit = sx / m + slope * (nv - sv / m)
+    out = np.where(m >= 3, fit, nx)
+    return out, nv
+
+
+def _subpixel(p: np.ndarray, valid: np.ndarray, diffs: np.ndarray, smooth: int = 2) -> np.ndarray:
     """p (H, W) integer positions along axis 1; diffs (nbits, H, W) with diffs[b] = bit b's pattern - inverse."""
     W = p.shape[1]
     out = np.where(valid, p.astype(np.float32), np.nan).astype(np.float32)
@@ -41,13 +77,14 @@ def _subpixel(p: np.ndarray, valid: np.ndarray, diffs: np.ndarray) -> np.ndarray
     with np.errstate(divide="ignore", invalid="ignore"):
         xz = np.where(ok, xs + dl / (dl - dr), xs + 0.5)
     val = q + 0.5
-    for y in np.unique(ys):
-        sel = ys == y
-        nx, nv = xz[sel], val[sel]
-        order = np.argsort(nx)
-        nx, nv = nx[order], nv[order]
-        if len(nx) < 2:
+    starts = np.searchsorted(ys, np.arange(p.shape[0] + 1))  # ys is sorted by row
+    for y in range(p.shape[0]):
+        lo_i, hi_i = starts[y], starts[y + 1]
+        if hi_i - lo_i < 2:
             continue
+        nx, nv = xz[lo_i:hi_i], val[lo_i:hi_i]
+        order = np.argsort(nx)
+        nx, nv = _smooth(nx[order], nv[order], smooth)
         xr = np.arange(W, dtype=np.float64)
         # interpolate only between consecutive boundaries (one position apart, a few pixels apart)
         seg = np.clip(np.searchsorted(nx, xr) - 1, 0, len(nx) - 2)
