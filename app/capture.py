@@ -88,6 +88,7 @@ class CaptureStats:
     untracked: int = 0  # no flip recorded at the frame's tick, or counters not anchored
     resyncs: int = 0  # a counter reset (trigger box reboot, camera restart) re-anchored the schedule
     sets: int = 0  # complete frame sets handed on
+    confirmed: int = 0  # tagged frames whose tag the pixel check confirmed (all tagged ones without it)
 
     @property
     def refused(self) -> int:
@@ -123,6 +124,7 @@ class _Accepted:
     tick: int
     sample: np.ndarray | None = None  # sparse pixels for the alternation check
     verified: bool = True  # passed the alternation check (or it is off)
+    confirmed: bool = False  # its tag is certain: handed to the recorder
 
 
 # A two-shot frame must differ from its predecessor (the inverse pattern) at least this many times
@@ -164,6 +166,7 @@ class FrameChecker:
         self._last_id: int | None = None
         self._last_sample: bytes | None = None
         self.last_reason: str = ""
+        self.confirmed: list[Frame] = []
 
     # ------------------------------------------------------------------ anchoring
 
@@ -203,6 +206,7 @@ class FrameChecker:
         """Check one frame; returns (the frame with its tag, or None if refused; a completed set or None)."""
         st = self.stats
         st.frames += 1
+        self.confirmed = []  # frames whose tags this push confirmed, in capture order (for the recorder)
         # Counter resets: the trigger box rebooted (count back to <= last) or the camera restarted.
         # A count a little behind a large last count is a frame delivered late (a swap), not a reset.
         if frame.trigger_count is not None and self._last_trigger is not None:
@@ -274,7 +278,16 @@ class FrameChecker:
                         "mistagged", f"frame {frame.frame_id}: its pixels repeat a pattern (a flip came late?)"
                     )
                 acc.verified = True
+                # Two patterns: the frame before differs from this one, which matches the frame of
+                # its pattern one cycle back, so the frame before holds the other pattern: confirmed.
+                if self.n_patterns == 2 and not h[-1].confirmed:
+                    h[-1].confirmed = True
+                    self.confirmed.append(h[-1].frame)
             self._refs[shown.pattern] = (tick, acc.sample)
+        acc.confirmed = acc.verified
+        if acc.confirmed:
+            self.confirmed.append(tagged)
+        st.confirmed += len(self.confirmed)
         self._history.append(acc)
         return tagged, self._complete_set(arrival_ns)
 
@@ -323,6 +336,7 @@ class LoopEvent:
 
     frame: Frame | None  # tagged frame (None if refused)
     raw: Frame  # the frame as the camera gave it
+    confirmed: list[Frame]  # tagged frames (this one, or the one before) whose tag is now certain
     frameset: FrameSet | None
     arrival_ns: int
     reason: str = ""  # why the frame was refused
@@ -448,7 +462,8 @@ class CaptureLoop:
             self.checker.anchor_frame_id(frame.frame_id, self.tick)
         tagged, fs = self.checker.push(frame, arrival)
         self.tick += 1
-        return LoopEvent(tagged, frame, fs, arrival, "" if tagged is not None else self.checker.last_reason)
+        reason = "" if tagged is not None else self.checker.last_reason
+        return LoopEvent(tagged, frame, list(self.checker.confirmed), fs, arrival, reason)
 
     def _pace(self) -> None:
         if not self.pace:

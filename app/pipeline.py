@@ -238,11 +238,14 @@ class LivePipeline:
                 self.latest_frame = ev.raw
                 if self.on_frame is not None:
                     self.on_frame(ev.raw)
-                if ev.frame is not None:
+                if ev.confirmed:
                     with self._lock:
                         rec = self.recorder
-                    if rec is not None and rec.put(ev.frame):
-                        self.stats.recorded += 1
+                    # Only frames whose tag is certain are recorded: a dump is decoded offline
+                    # without these checks. Tagged frames never confirmed are counted (stats).
+                    for f in ev.confirmed if rec is not None else ():
+                        if rec.put(f):
+                            self.stats.recorded += 1
                 if ev.frameset is not None and self.processor is not None:
                     self._push_set(ev.frameset)
         except SlscanError as exc:

@@ -151,8 +151,9 @@ def _record_row(frames: int, png_level: int) -> dict:
         "refused": fig["mispaired"],
         "mispaired": "",
         "stale_sets": "",
-        "lost": stats.lost + (pipe.capture.tagged - on_disk if not stats.lost else 0),
-        "error": f"{on_disk} written of {pipe.capture.tagged} tagged; write p50 {np.median(w):.1f} ms, "
+        "lost": stats.lost + (pipe.capture.confirmed - on_disk if not stats.lost else 0),
+        "error": f"{on_disk} written of {pipe.capture.confirmed} confirmed ({pipe.capture.tagged} tagged); "
+        f"write p50 {np.median(w):.1f} ms, "
         f"p95 {np.percentile(w, 95):.1f} ms; {size_mb / max(on_disk, 1):.2f} MB/frame"
         + (f"; {rec.message}" if rec.message else ""),
     }

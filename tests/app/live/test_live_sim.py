@@ -179,4 +179,4 @@ def test_projector_window_closed_by_the_operator_stops_cleanly(tmp_path, sim_ses
     rec.close()
     assert pipe.error is None and pipe.stop_reason == "the projector window was closed"
     assert pipe.capture.frames == 20
-    assert len(read_dump(tmp_path / "rec").frames) == pipe.capture.tagged
+    assert len(read_dump(tmp_path / "rec").frames) == pipe.capture.confirmed >= pipe.capture.tagged - 2

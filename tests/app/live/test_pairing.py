@@ -43,6 +43,7 @@ def simulate(faults: list[str], scheme: str = "two-shot", n: int = 2, use_trigge
     log = FlipLog()
     checker = FrameChecker(scheme, n, log, check_alternation=scheme != "one-shot")
     delivered: list[Frame] = []
+    confirmed: list[Frame] = []  # what a recorder would write
     sets = []
     tick = 0
     trig_base = 0  # tick of trigger count 1
@@ -51,6 +52,7 @@ def simulate(faults: list[str], scheme: str = "two-shot", n: int = 2, use_trigge
     def deliver(f: Frame) -> None:
         delivered.append(f)
         _, fs = checker.push(f)
+        confirmed.extend(checker.confirmed)
         if fs is not None:
             sets.append(fs)
 
@@ -101,6 +103,7 @@ def simulate(faults: list[str], scheme: str = "two-shot", n: int = 2, use_trigge
                 log.record(Shown(tick, tick % n, tick))
                 deliver(dataclasses.replace(f, frame_id=f.frame_id + 1))
         tick += 1
+    simulate.confirmed = confirmed
     return sets, checker.stats, delivered
 
 
@@ -166,6 +169,11 @@ def test_no_fault_sequence_ever_yields_a_mispaired_set(faults, use_trigger, seed
     assert_all_sets_correct(sets, 2)
     assert stats.frames == len(delivered)
     assert stats.tagged + stats.refused == stats.frames
+    # what the recorder gets: each frame once, in order, with the pattern it really saw
+    recorded = simulate.confirmed
+    assert all(f.pattern == true_of(f)[0] for f in recorded)
+    assert [f.frame_id for f in recorded] == sorted({f.frame_id for f in recorded})
+    assert len(recorded) == stats.confirmed <= stats.tagged
 
 
 @settings(max_examples=60, deadline=None)

@@ -40,7 +40,8 @@ def test_dump_written_live_decodes_with_nothing_else(tmp_path, sim_session, caps
     session = build_session(None, sim_overrides=SMALL)
     pipe, rec, stats = record(session, tmp_path / "rec", frames=24)
     assert pipe.error is None and rec.message is None
-    assert stats.written == pipe.capture.tagged and stats.lost == 0  # every tagged frame is in the dump
+    # every frame whose tag is certain is in the dump (the pixel check confirms all but the first)
+    assert stats.written == pipe.capture.confirmed >= pipe.capture.tagged - 2 and stats.lost == 0
     dump = read_dump(tmp_path / "rec")
     assert len(dump.frames) == stats.written
     # the tags in the dump are what the frames really saw
