@@ -20,6 +20,9 @@ examples:
   slscan decode rec/ --out depth/                     # the dump carries its calibration and depth range
   slscan dump --repair rec/                           # after a crash: index = the complete frames
 
+Only frames whose pattern tag is certain are written (the tag comes from the trigger count and the
+flip log, then the pixels must alternate as the patterns do): with two-shot every frame from the
+third one on, with Gray code from the second pattern cycle on; every refused frame is counted.
 The dump is readable up to its last complete frame at any moment, even if slscan is killed.
 An existing --out is never overwritten. PNG level 0 (default) keeps up at 60 Hz with the most
 disk (~0.9 MB per 640x480 frame); level 1 halves the size for ~11 ms of one core per frame.
