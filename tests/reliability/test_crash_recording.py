@@ -1,0 +1,105 @@
+"""Crash-safe recording: `slscan dump` kill -9'd at many random points, each time a readable dump.
+
+Each kill is a real `slscan dump` process on the virtual rig (320x240), killed after a random
+number of index entries plus a random fraction of a frame period (so some kills land inside a
+PNG write or an index append). Every time: the dump reads back up to its last complete frame,
+every listed frame loads, frame ids only go up, each frame's pixels are the pattern its tag names
+(checked against the same rig's render of both patterns), and `slscan dump --repair` leaves an
+index that lists exactly those frames and no stray file. (Disk-full while recording is covered in
+tests/app/live/test_recording.py; the recorder-level kill loop there too: this one is the CLI.)
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import yaml
+
+from app.cli import main
+from app.config import DEFAULT_CONFIG
+from app.dump import read_dump
+
+from .conftest import SMALL, fresh_devices
+
+KILLS = 12
+AT_ONCE = 4  # processes alive together (each spends most of its life starting up)
+
+
+@pytest.fixture(scope="module")
+def small_config(tmp_path_factory):
+    data = yaml.safe_load(DEFAULT_CONFIG.read_text())
+    data["sim"].update(SMALL)
+    path = tmp_path_factory.mktemp("cfg") / "small.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+def _entries(folder) -> int:
+    try:
+        return (folder / "dump.yaml").read_bytes().count(b"\n- {")
+    except OSError:
+        return 0
+
+
+def _kill_runs(config, tmp_path, rng) -> list:
+    """Start KILLS `slscan dump` processes (AT_ONCE at a time) and kill -9 each at its random point."""
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    todo = [(tmp_path / f"rec{k}", int(rng.integers(1, 60)), float(rng.uniform(0, 0.017))) for k in range(KILLS)]
+    running: list = []
+    done: list = []
+    deadline = time.monotonic() + 150
+    while (todo or running) and time.monotonic() < deadline:
+        while todo and len(running) < AT_ONCE:
+            folder, target, extra = todo.pop()
+            cmd = [sys.executable, "-m", "app.cli", "dump", "--config", str(config), "--frames", "100000"]
+            proc = subprocess.Popen(
+                [*cmd, "--out", str(folder)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env
+            )
+            running.append((proc, folder, target, extra))
+        for item in list(running):
+            proc, folder, target, extra = item
+            if _entries(folder) >= target or proc.poll() is not None:
+                time.sleep(extra)
+                proc.send_signal(signal.SIGKILL)
+                proc.wait()
+                running.remove(item)
+                done.append((folder, target, proc.returncode))
+        time.sleep(0.002)
+    for proc, *_ in running:
+        proc.kill()
+        proc.wait()
+    return done
+
+
+def test_kill_9_of_slscan_dump_at_random_points(small_config, tmp_path, rig_session):
+    session, _ = rig_session
+    dev = fresh_devices(session)
+    rig, prepared = dev.camera.bench.rig, dev.camera.bench.patterns
+    refs = [rig.render(prepared[p]).astype(np.float32) for p in range(len(prepared))]
+    done = _kill_runs(small_config, tmp_path, np.random.default_rng(8))
+    assert len(done) == KILLS
+    for folder, target, code in done:
+        assert code == -signal.SIGKILL, (folder, code)  # killed, not exited on its own
+        dump = read_dump(folder)
+        n = len(dump.frames)
+        assert n >= target - 1, (folder, n, target)  # at most the entry being written is lost
+        ids = [f.frame_id for f in dump.frames]
+        assert ids == sorted(set(ids)), folder
+        for i, rec in enumerate(dump.frames):
+            img = dump.load_frame(i).astype(np.float32)
+            assert img.shape == (240, 320, 3), (folder, rec.file)
+            d = [float(np.mean(np.abs(img - r))) for r in refs]
+            assert int(np.argmin(d)) == rec.pattern, (folder, rec, d)  # the pixels are the tagged pattern
+        assert main(["dump", "--repair", str(folder)]) == 0  # the CLI repair
+        again = read_dump(folder)
+        assert [f.frame_id for f in again.frames] == ids and again.dropped_tail == 0
+        assert not list((folder / "frames").glob("*.tmp*"))
+        listed = {f.file.split("/")[-1] for f in again.frames}
+        assert {p.name for p in (folder / "frames").iterdir()} == listed  # no unindexed file left
+        assert (folder / "dump.yaml").read_text().endswith("\n")
