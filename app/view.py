@@ -81,7 +81,7 @@ class LiveView:
         self.snapshots = 0
         self.message = ""
         self.processor = session.processor()
-        self.pipe = self._start_pipeline()
+        self.pipe: Any = None  # started once the window is open (no devices running behind a failed window)
         self.cam_size = session.calibration.camera_size
 
     def _start_pipeline(self):
@@ -169,6 +169,8 @@ class LiveView:
             pyglet.text.Label(t, x=i * pw + 6, y=ph + 28 - 18, font_size=10, color=(255, 255, 0, 255))
             for i, t in enumerate(("camera", "stripes", "depth"))
         ]
+
+        self.pipe = self._start_pipeline()
 
         def upload(i: int, rgb: np.ndarray) -> None:
             rgb = np.ascontiguousarray(to_display(rgb))
