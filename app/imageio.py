@@ -10,6 +10,9 @@ import numpy as np
 
 from app.errors import InputError
 
+# OpenCV logs its own WARN/ERROR lines for corrupt files; slscan reports those as one clear line itself.
+cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+
 
 def write_rgb(path: str | os.PathLike, image: np.ndarray) -> None:
     """Write an RGB (H, W, 3) or grey (H, W) uint8/uint16 image; PNG is lossless."""

@@ -245,7 +245,10 @@ class VirtualRig:
     def calibration(self) -> Calibration:
         """The true calibration, with the true colour mixing (columns scaled to a unit diagonal)."""
         M = self._crosstalk / np.diag(self._crosstalk)[None, :]
-        return self.geometry.calibration(color_mixing=M)
+        cal = self.geometry.calibration(color_mixing=M)
+        # The decoders linearise camera values with it before unmixing (a calibration solve measures it).
+        cal.extra["camera_gamma"] = float(self.options.camera_gamma)
+        return cal
 
     @property
     def depth_range_mm(self) -> tuple[float, float]:
