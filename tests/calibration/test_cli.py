@@ -152,7 +152,9 @@ def test_from_repeats_the_solve_and_survives_bad_poses(auto_run, run_cli_module,
     assert "pose_008: skipped: no board found" in proc2.stdout
     assert "pose_009: skipped: Gray code undecodable on the board" in proc2.stdout
     a, b = Calibration.load(d / "cal.yaml"), Calibration.load(out)
-    assert np.allclose(a.camera_matrix, b.camera_matrix) and np.allclose(a.T, b.T)
+    # the same solve up to OpenCV's floating-point reduction order (threads)
+    assert np.abs(a.camera_matrix - b.camera_matrix).max() < 0.05 and np.abs(a.T - b.T).max() < 0.01
+    assert np.abs(a.projector_matrix - b.projector_matrix).max() < 0.05
     # without --force an existing capture is never overwritten by --auto
     proc3 = run_cli_module("calibrate", "--auto", "--poses", "5", "--capture", cap, "--out", tmp_path / "x.yaml")
     assert "already exists" in one_line_error(proc3)
