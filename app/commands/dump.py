@@ -82,6 +82,8 @@ def run(args: argparse.Namespace) -> int:
         f"{cap.frames} frames in {elapsed:.1f} s ({cap.frames / max(elapsed, 1e-9):.1f}/s); "
         f"dropped {cap.dropped}, refused {cap.refused} (untagged frames are never recorded)"
     )
+    if cap.tagged > cap.confirmed:
+        print(f"{cap.tagged - cap.confirmed} tagged frame(s) next to a break not recorded: their tag was unconfirmed")
     print(recorder.summary())
     if stats.write_ms:
         w = sorted(stats.write_ms)

@@ -308,6 +308,8 @@ def run_headless(session: Session, args: argparse.Namespace, label: str = "live"
     print_figures(fig)
     if recorder is not None:
         print(recorder.summary())
+        if pipe.capture.tagged > pipe.capture.confirmed:
+            print(f"{pipe.capture.tagged - pipe.capture.confirmed} tagged frame(s) next to a break not recorded")
     if pipe.latest is not None:
         save_result(pipe.latest, processor, out)
         print(f"last scan (frames {', '.join(map(str, pipe.latest.frameset.frame_ids))}) written to {out}")
