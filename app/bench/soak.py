@@ -91,13 +91,24 @@ def slope_mb_per_min(samples: list[dict]) -> float:
 # ------------------------------------------------------------------------------------ the soak
 
 
-def soak(minutes: float, *, faults: bool = True, workers: int = 1, sample_s: float = 30.0, seed: int = 11) -> dict:
-    """Run the live pipeline for `minutes`; returns the figures (see module docstring)."""
+def soak(
+    minutes: float,
+    *,
+    faults: bool = True,
+    workers: int = 1,
+    sample_s: float = 30.0,
+    seed: int = 11,
+    sim_overrides: dict | None = None,
+) -> dict:
+    """Run the live pipeline for `minutes`; returns the figures (see module docstring).
+
+    sim_overrides: extra `sim:` keys of config/sim.yaml (tests run it at 320x240)."""
     from app.commands.live import build_session
     from app.pipeline import LivePipeline
 
     before = sample()  # before the session exists: what the process holds without it
-    session = build_session(None, sim_overrides={"faults": FAULTS, "seed": seed} if faults else {"seed": seed})
+    overrides = {**(sim_overrides or {}), "seed": seed, **({"faults": FAULTS} if faults else {})}
+    session = build_session(None, sim_overrides=overrides)
     processor = session.processor()
     cam = session.sim.camera
     lock = threading.Lock()
@@ -186,12 +197,21 @@ def soak(minutes: float, *, faults: bool = True, workers: int = 1, sample_s: flo
 
 
 def run(args: argparse.Namespace) -> list[dict]:
+    from app.errors import InputError
+
+    minutes, sample_s = getattr(args, "minutes", 30.0), getattr(args, "soak_sample", 30.0)
+    if not minutes > 0:
+        raise InputError(f"--minutes {minutes}: must be more than 0")
+    if not sample_s > 0:
+        raise InputError(f"--soak-sample {sample_s}: must be more than 0 seconds")
+    if getattr(args, "soak_workers", 1) < 1:
+        raise InputError(f"--soak-workers {args.soak_workers}: must be at least 1")
     return [
         soak(
-            getattr(args, "minutes", 30.0),
+            minutes,
             faults=not getattr(args, "soak_clean", False),
             workers=getattr(args, "soak_workers", 1),
-            sample_s=getattr(args, "soak_sample", 30.0),
+            sample_s=sample_s,
         )
     ]
 
