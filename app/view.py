@@ -16,9 +16,9 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import cv2
 import numpy as np
 
+from app import export
 from app.decode.stripemap import StripeMap
 
 if TYPE_CHECKING:
@@ -31,30 +31,13 @@ SCHEME_CYCLE = ("two-shot", "one-shot", "graycode")
 
 
 def stripe_colours(stripes: StripeMap) -> np.ndarray:
-    """Pseudo-colour of stripe identities (paper Fig. 8b): neighbouring stripes get distant hues; black = none."""
-    s = stripes.stripe
-    hue = ((s.astype(np.int64) * 47) % 180).astype(np.uint8)  # 47/180 of a turn apart: neighbours contrast
-    hsv = np.dstack([hue, np.full_like(hue, 255), np.full_like(hue, 255)])
-    rgb = cv2.cvtColor(hsv, cv2.COLOR_HSV2RGB)
-    rgb[s < 0] = 0
-    return rgb
+    """Pseudo-colour of stripe identities (paper Fig. 8b), as `slscan decode` writes it; black = none."""
+    return export.stripe_colours(stripes.stripe, stripes.period)
 
 
 def colourise_depth(depth: np.ndarray, depth_range_mm: tuple[float, float] | None = None) -> np.ndarray:
-    """Depth (mm, 0 = none) as RGB: near = red, far = blue over the working range; black = none."""
-    valid = depth > 0
-    if depth_range_mm is None:
-        if valid.any():
-            lo, hi = float(np.percentile(depth[valid], 1)), float(np.percentile(depth[valid], 99))
-        else:
-            lo, hi = 0.0, 1.0
-    else:
-        lo, hi = float(depth_range_mm[0]), float(depth_range_mm[1])
-    t = np.clip((depth - lo) / max(hi - lo, 1e-6), 0, 1)
-    grey = (255 * (1 - t)).astype(np.uint8)
-    rgb = cv2.applyColorMap(grey, cv2.COLORMAP_TURBO)[:, :, ::-1].copy()  # OpenCV maps to BGR
-    rgb[~valid] = 0
-    return rgb
+    """Depth (mm, 0 = none) as RGB over the working range, as `slscan decode` previews it; black = none."""
+    return export.depth_preview(depth, depth_range_mm)
 
 
 def to_display(image: np.ndarray) -> np.ndarray:

@@ -360,30 +360,13 @@ def save_result(result: Result, processor: Processor, out: str | os.PathLike) ->
 
 
 def write_result_files(result: Result, processor: Processor, folder: Path, stem: str = "") -> None:
-    from app.imageio import write_float_tiff, write_rgb
+    from app import export
+    from app.imageio import write_rgb
     from app.view import colourise_depth, stripe_colours
 
-    write_float_tiff(folder / f"{stem}depth.tiff", result.depth)
+    export.write_depth_tiff(folder / f"{stem}depth.tiff", result.depth)
     write_rgb(folder / f"{stem}stripes.png", stripe_colours(result.stripes))
     write_rgb(folder / f"{stem}depth_preview.png", colourise_depth(result.depth, processor.triangulator.depth_range_mm))
     for p, f in enumerate(result.frameset.frames):
         write_rgb(folder / f"{stem}camera_p{p}.png", f.image)
-    write_ply(folder / f"{stem}cloud.ply", processor.triangulator.points(result.depth, result.image))
-
-
-def write_ply(path: Path, cloud: Any) -> None:
-    """Binary little-endian PLY: x y z float32, red green blue uchar (the architecture file's cloud)."""
-    import numpy as np
-
-    n = len(cloud.xyz)
-    header = (
-        "ply\nformat binary_little_endian 1.0\n"
-        f"element vertex {n}\nproperty float x\nproperty float y\nproperty float z\n"
-        "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
-    )
-    rec = np.empty(n, dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("r", "u1"), ("g", "u1"), ("b", "u1")])
-    rec["x"], rec["y"], rec["z"] = cloud.xyz[:, 0], cloud.xyz[:, 1], cloud.xyz[:, 2]
-    rec["r"], rec["g"], rec["b"] = cloud.rgb[:, 0], cloud.rgb[:, 1], cloud.rgb[:, 2]
-    with open(path, "wb") as fh:
-        fh.write(header.encode("ascii"))
-        fh.write(rec.tobytes())
+    export.write_ply(folder / f"{stem}cloud.ply", processor.triangulator.points(result.depth, result.image))

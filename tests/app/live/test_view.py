@@ -78,7 +78,7 @@ def xvfb():
 def test_view_shows_results_and_its_keys_work(tmp_path, xvfb):
     env = {**os.environ, "DISPLAY": xvfb}
     r = subprocess.run(
-        [sys.executable, "-c", SCRIPT], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=240
+        [sys.executable, "-c", SCRIPT], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=280
     )
     assert r.returncode == 0, r.stderr[-2000:]
     assert "snapshot written to snapshot-000" in r.stdout
