@@ -27,6 +27,30 @@ from drivers.base import Frame
 from .conftest import SMALL, depth_agreement
 
 
+def small_config(tmp_path, **sim) -> str:
+    """config/sim.yaml at 320x240, with `sim:` keys replaced, as a file for the CLI."""
+    data = yaml.safe_load(DEFAULT_CONFIG.read_text())
+    data["sim"].update(camera_size=[320, 240], **sim)
+    path = tmp_path / "small.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return str(path)
+
+
+def wait_for_frames(folder, n: int, timeout_s: float = 90.0, poll_s: float = 0.02) -> None:
+    """Until the dump being written in `folder` lists n frames (or the timeout passes)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        idx = folder / "dump.yaml"
+        if idx.is_file() and idx.read_text().count("\n- {") >= n:
+            return
+        time.sleep(poll_s)
+
+
+def slscan_dump(cfg: str, out, **kw) -> subprocess.Popen:
+    argv = [sys.executable, "-m", "app.cli", "dump", "--config", cfg, "--frames", "100000", "--out", str(out)]
+    return subprocess.Popen(argv, **kw)
+
+
 def record(session, folder, frames: int, png_level: int = 0):
     rec = open_recorder(session, folder, png_level)
     pipe = LivePipeline(lambda: session.make_loop(timeout_s=3.0), None, max_frames=frames, recorder=rec)
@@ -118,12 +142,7 @@ def test_kill_9_at_random_points_leaves_a_readable_dump(tmp_path, png_level):
         folder = tmp_path / f"rec{k}"
         proc = subprocess.Popen([sys.executable, "-c", RECORDER_SCRIPT, str(folder), str(png_level)])
         try:
-            deadline = time.monotonic() + 60
-            while time.monotonic() < deadline:
-                idx = folder / "dump.yaml"
-                if idx.is_file() and idx.read_text().count("\n- {") >= 3:
-                    break
-                time.sleep(0.01)
+            wait_for_frames(folder, 3, timeout_s=60, poll_s=0.01)
             time.sleep(float(rng.uniform(0, 0.3)))
         finally:
             proc.send_signal(signal.SIGKILL)
@@ -142,23 +161,10 @@ def test_kill_9_at_random_points_leaves_a_readable_dump(tmp_path, png_level):
 
 
 def test_kill_9_of_slscan_dump_leaves_a_readable_dump(tmp_path):
-    data = yaml.safe_load(DEFAULT_CONFIG.read_text())
-    data["sim"]["camera_size"] = [320, 240]
-    cfg = tmp_path / "small.yaml"
-    cfg.write_text(yaml.safe_dump(data))
     out = tmp_path / "rec"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "app.cli", "dump", "--config", str(cfg), "--frames", "100000", "--out", str(out)],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
+    proc = slscan_dump(small_config(tmp_path), out, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
-        deadline = time.monotonic() + 90
-        while time.monotonic() < deadline:
-            idx = out / "dump.yaml"
-            if idx.is_file() and idx.read_text().count("\n- {") >= 6:
-                break
-            time.sleep(0.02)
+        wait_for_frames(out, 6)
     finally:
         proc.send_signal(signal.SIGKILL)
         proc.wait()
@@ -170,12 +176,9 @@ def test_kill_9_of_slscan_dump_leaves_a_readable_dump(tmp_path):
 
 
 def test_camera_that_stops_sending_times_out_and_the_dump_is_finalised(tmp_path, capsys):
-    data = yaml.safe_load(DEFAULT_CONFIG.read_text())
-    data["sim"].update(camera_size=[320, 240], faults=[{"kind": "stall", "at": [12], "seconds": 1.5}])
-    cfg = tmp_path / "stall.yaml"
-    cfg.write_text(yaml.safe_dump(data))
+    cfg = small_config(tmp_path, faults=[{"kind": "stall", "at": [12], "seconds": 1.5}])
     out = tmp_path / "rec"
-    code = main(["dump", "--config", str(cfg), "--frames", "1000", "--out", str(out), "--timeout", "0.5"])
+    code = main(["dump", "--config", cfg, "--frames", "1000", "--out", str(out), "--timeout", "0.5"])
     err = capsys.readouterr().err
     assert code == 2
     assert "no frame within" in err and "finalised" in err
@@ -185,23 +188,9 @@ def test_camera_that_stops_sending_times_out_and_the_dump_is_finalised(tmp_path,
 
 
 def test_ctrl_c_stops_slscan_dump_cleanly(tmp_path):
-    data = yaml.safe_load(DEFAULT_CONFIG.read_text())
-    data["sim"]["camera_size"] = [320, 240]
-    cfg = tmp_path / "small.yaml"
-    cfg.write_text(yaml.safe_dump(data))
     out = tmp_path / "rec"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "app.cli", "dump", "--config", str(cfg), "--frames", "100000", "--out", str(out)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    deadline = time.monotonic() + 90
-    while time.monotonic() < deadline:
-        idx = out / "dump.yaml"
-        if idx.is_file() and idx.read_text().count("\n- {") >= 4:
-            break
-        time.sleep(0.02)
+    proc = slscan_dump(small_config(tmp_path), out, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    wait_for_frames(out, 4)
     proc.send_signal(signal.SIGINT)
     stdout, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 130, stderr
