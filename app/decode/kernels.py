@@ -677,3 +677,300 @@ def vertical_check(out_col, out_chain, n_chains, tol, min_support):
                     out_col[y, x] = np.nan
                     out_chain[y, x] = -1
     return dropped
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, code, feat, noise):
+    """twoshot_classify for row y of the frames into one-row buffers code (1, W), feat/noise (1, W, m).
+
+    Same arithmetic, block by block, with the coefficients and running maxima in locals: the output
+    buffers are float32 like the tables, so the compiler must assume they alias and reloads whatever
+    lives in an array after every store (that, not the arithmetic, cost most of the time). Written
+    out for the usual two pattern channels; any other count takes _classify_row_any.
+    """
+    if unmix.shape[0] != 2:
+        _classify_row_any(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, code, feat, noise)
+        return
+    W = code.shape[1]
+    nb = (W + block - 1) // block
+    ta = t_abs * 0.5
+    u00 = unmix[0, 0]
+    u01 = unmix[0, 1]
+    u02 = unmix[0, 2]
+    u10 = unmix[1, 0]
+    u11 = unmix[1, 1]
+    u12 = unmix[1, 2]
+    w00 = abs(u00)
+    w01 = abs(u01)
+    w02 = abs(u02)
+    w10 = abs(u10)
+    w11 = abs(u11)
+    w12 = abs(u12)
+    for b in range(nb):
+        x0 = b * block
+        x1 = min(W, x0 + block)
+        mx0 = np.float32(0.0)
+        mx1 = np.float32(0.0)
+        for x in range(x0, x1):
+            a0 = f1[y, x, 0]
+            a1 = f1[y, x, 1]
+            a2 = f1[y, x, 2]
+            b0 = f2[y, x, 0]
+            b1 = f2[y, x, 1]
+            b2 = f2[y, x, 2]
+            d0 = lin[0, b0] - lin[0, a0]
+            d1 = lin[1, b1] - lin[1, a1]
+            d2 = lin[2, b2] - lin[2, a2]
+            n0 = dlin[0, b0] + dlin[0, a0]
+            n1 = dlin[1, b1] + dlin[1, a1]
+            n2 = dlin[2, b2] + dlin[2, a2]
+            fv0 = u00 * d0 + u01 * d1 + u02 * d2
+            fv1 = u10 * d0 + u11 * d1 + u12 * d2
+            feat[0, x, 0] = fv0
+            feat[0, x, 1] = fv1
+            noise[0, x, 0] = ta * (w00 * n0 + w01 * n1 + w02 * n2)
+            noise[0, x, 1] = ta * (w10 * n0 + w11 * n1 + w12 * n2)
+            mx0 = max(mx0, abs(fv0))
+            mx1 = max(mx1, abs(fv1))
+        bmax[0, b] = mx0
+        bmax[1, b] = mx1
+    p0 = np.float32(0.0)
+    p1 = np.float32(0.0)
+    c0 = bmax[0, 0]
+    c1 = bmax[1, 0]
+    for b in range(nb):
+        q0 = bmax[0, b + 1] if b + 1 < nb else np.float32(0.0)
+        q1 = bmax[1, b + 1] if b + 1 < nb else np.float32(0.0)
+        a0 = max(c0, max(p0, q0))
+        a1 = max(c1, max(p1, q1))
+        tr0 = t_rel * a0
+        tr1 = t_rel * a1
+        te0 = t_rel_edge * a0
+        te1 = t_rel_edge * a1
+        x0 = b * block
+        x1 = min(W, x0 + block)
+        for x in range(x0, x1):
+            nz0 = noise[0, x, 0]
+            nz1 = noise[0, x, 1]
+            d0 = feat[0, x, 0]
+            d1 = feat[0, x, 1]
+            ok = abs(d0) >= max(tr0, nz0) and abs(d1) >= max(tr1, nz1)
+            code[0, x] = ((1 if d0 < 0 else 0) | (2 if d1 < 0 else 0)) if ok else -1
+            noise[0, x, 0] = max(te0, nz0)  # the event mode's thresholds
+            noise[0, x, 1] = max(te1, nz1)
+        p0 = c0
+        p1 = c1
+        c0 = q0
+        c1 = q1
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _classify_row_any(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, code, feat, noise):
+    """_classify_row for any number of pattern channels."""
+    W = code.shape[1]
+    m = unmix.shape[0]
+    nb = (W + block - 1) // block
+    ta = t_abs * 0.5
+    for c in range(m):
+        u0 = unmix[c, 0]
+        u1 = unmix[c, 1]
+        u2 = unmix[c, 2]
+        w0 = abs(u0)
+        w1 = abs(u1)
+        w2 = abs(u2)
+        for b in range(nb):
+            x0 = b * block
+            x1 = min(W, x0 + block)
+            mx = np.float32(-np.inf)
+            for x in range(x0, x1):
+                a0 = f1[y, x, 0]
+                a1 = f1[y, x, 1]
+                a2 = f1[y, x, 2]
+                b0 = f2[y, x, 0]
+                b1 = f2[y, x, 1]
+                b2 = f2[y, x, 2]
+                d0 = lin[0, b0] - lin[0, a0]
+                d1 = lin[1, b1] - lin[1, a1]
+                d2 = lin[2, b2] - lin[2, a2]
+                n0 = dlin[0, b0] + dlin[0, a0]
+                n1 = dlin[1, b1] + dlin[1, a1]
+                n2 = dlin[2, b2] + dlin[2, a2]
+                fv = u0 * d0 + u1 * d1 + u2 * d2
+                feat[0, x, c] = fv
+                noise[0, x, c] = ta * (w0 * n0 + w1 * n1 + w2 * n2)
+                av = abs(fv)
+                if av > mx:
+                    mx = av
+            bmax[c, b] = mx
+    for x in range(W):
+        code[0, x] = 0
+    for c in range(m):
+        bit = 1 << c
+        prev = np.float32(0.0)
+        cur = bmax[c, 0]
+        for b in range(nb):
+            nxt = bmax[c, b + 1] if b + 1 < nb else np.float32(0.0)
+            a = cur
+            if b > 0 and prev > a:
+                a = prev
+            if nxt > a:
+                a = nxt
+            tr = t_rel * a
+            te = t_rel_edge * a
+            x0 = b * block
+            x1 = min(W, x0 + block)
+            for x in range(x0, x1):
+                nz = noise[0, x, c]
+                d = feat[0, x, c]
+                thr = tr if tr >= nz else nz
+                cd = code[0, x]
+                if abs(d) < thr:
+                    cd = -1
+                elif d < 0 and cd >= 0:
+                    cd |= bit
+                code[0, x] = cd
+                noise[0, x, c] = te if te > nz else nz  # the event mode's threshold
+            prev = cur
+            cur = nxt
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def merge_columns(a_col, a_chain, b_col, b_chain, off):
+    """merge_maps in one pass: fill a's gaps from b (chains renumbered from off), none where both differ by
+    more than 0.5 px. Returns (filled, clashes)."""
+    H, W = a_col.shape
+    filled = 0
+    clashes = 0
+    for y in range(H):
+        for x in range(W):
+            va = a_col[y, x]
+            vb = b_col[y, x]
+            if va != va:
+                if vb == vb:
+                    a_col[y, x] = vb
+                    a_chain[y, x] = b_chain[y, x] + off
+                    filled += 1
+            elif vb == vb and abs(va - vb) > 0.5:
+                a_col[y, x] = np.nan
+                a_chain[y, x] = -1
+                clashes += 1
+    return filled, clashes
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def twoshot_rows(
+    f1,
+    f2,
+    lin,
+    dlin,
+    unmix,
+    t_abs,
+    t_rel,
+    t_rel_edge,
+    block,
+    wts,
+    link_ok,
+    table,
+    k,
+    period,
+    sw,
+    n_copies,
+    proj_w,
+    gap_max,
+    lo,
+    hi,
+    use_range,
+    edges_mode,
+    min_frac,
+    smooth,
+    col_e,
+    chain_e,
+    col_r,
+    chain_r,
+):
+    """The two-shot decoder's "both" segmentation fused row by row: classify a row into one-row buffers,
+    then label it from its zero crossings (col_e/chain_e) and from its pixel runs (col_r/chain_r).
+
+    Same arithmetic as twoshot_classify + label_rows twice, without full-image intermediates.
+    Returns the chain counts (events, runs).
+    """
+    H, W = col_e.shape
+    m = unmix.shape[0]
+    A = link_ok.shape[0]
+    nb = (W + block - 1) // block
+    bmax = np.empty((m, nb), np.float32)
+    code = np.empty((1, W), np.int8)
+    feat = np.empty((1, W, m), np.float32)
+    noise = np.empty((1, W, m), np.float32)
+    n = (m + 1) * (2 * W + 8)
+    rs = np.empty(n, np.int64)
+    re = np.empty(n, np.int64)
+    rc = np.empty(n, np.int64)
+    link = np.zeros(n, np.bool_)
+    edge = np.zeros(n, np.float64)
+    left = np.zeros(n, np.float64)
+    right = np.zeros(n, np.float64)
+    tl = np.zeros(n + 1, np.int64)
+    pos = np.empty(n, np.int64)
+    lab = np.empty(n, np.int64)
+    nx = np.empty(n, np.float64)
+    nv = np.empty(n, np.float64)
+    sm = np.empty(n, np.float64)
+    votes = np.zeros(max(n_copies, 1), np.int64)
+    colrow = np.empty(W, np.float64)
+    ex = np.empty((m, n), np.float64)
+    es = np.empty((m, n), np.int64)
+    et = np.empty((m, n), np.int64)
+    cnt = np.zeros(m, np.int64)
+    n_e = 0
+    n_r = 0
+    for y in range(H):
+        _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, code, feat, noise)
+        for ev in range(2):
+            oc = col_e if ev == 0 else col_r
+            och = chain_e if ev == 0 else chain_r
+            n0 = n_e if ev == 0 else n_r
+            if ev == 0:
+                nr = _event_runs(feat, noise, 0, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right)
+            else:
+                nr = _pixel_runs(code, feat, wts, link_ok, 0, gap_max, rs, re, rc, link, edge, left, right)
+            nc = _label_row(
+                y,
+                nr,
+                rs,
+                re,
+                rc,
+                link,
+                edge,
+                left,
+                right,
+                tl,
+                pos,
+                lab,
+                nx,
+                nv,
+                colrow,
+                table,
+                A,
+                k,
+                period,
+                sw,
+                n_copies,
+                proj_w,
+                lo,
+                hi,
+                use_range,
+                edges_mode,
+                min_frac,
+                smooth,
+                sm,
+                votes,
+                oc,
+                och,
+                n0,
+            )
+            if ev == 0:
+                n_e = nc
+            else:
+                n_r = nc
+    return n_e, n_r

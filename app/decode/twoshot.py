@@ -17,7 +17,7 @@ import numpy as np
 from app.decode import kernels
 from app.decode.colour import channel_rows, linearisation, unmixing_matrix
 from app.decode.stripemap import StripeMap
-from app.decode.windows import LabelParams, WindowSpec, label, window_lookup
+from app.decode.windows import EMPTY_RANGE, LabelParams, WindowSpec, label, window_lookup
 from app.errors import InputError
 
 
@@ -87,14 +87,18 @@ class TwoShotDecoder:
             self._luts[levels] = linearisation(levels, self.camera_gamma, resp)
         return self._luts[levels]
 
-    def classify(
-        self, frame1: np.ndarray, frame2: np.ndarray, want_code: bool = True
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Per-pixel codes (-1 = none), the unmixed differences and the event mode's sign thresholds."""
+    @staticmethod
+    def _check_pair(frame1: np.ndarray, frame2: np.ndarray) -> None:
         if frame1.shape != frame2.shape or frame1.ndim != 3 or frame1.shape[2] != 3:
             raise InputError(f"frames of a pair differ in size or are not RGB: {frame1.shape} vs {frame2.shape}")
         if frame1.dtype not in (np.uint8, np.uint16) or frame2.dtype != frame1.dtype:
             raise InputError(f"frames must both be uint8 or uint16 RGB, found {frame1.dtype} and {frame2.dtype}")
+
+    def classify(
+        self, frame1: np.ndarray, frame2: np.ndarray, want_code: bool = True
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per-pixel codes (-1 = none), the unmixed differences and the event mode's sign thresholds."""
+        self._check_pair(frame1, frame2)
         H, W = frame1.shape[:2]
         m = self.unmix.shape[0]
         code = np.empty((H, W), np.int8)
@@ -127,14 +131,75 @@ class TwoShotDecoder:
         seg = p.segmentation
         if seg not in ("both", "events", "runs"):
             raise ValueError(f"segmentation {seg!r} is not both, events or runs")
+        if seg == "both":
+            return self._decode_both(frame1, frame2)
         code, feat, thr = self.classify(frame1, frame2, want_code=seg != "events")
-        if seg != "both":
-            lp = dataclasses.replace(p.label, events=seg == "events")
-            return label(code, feat, self.spec, lp, self.column_range, thr)
-        a = label(code, feat, self.spec, dataclasses.replace(p.label, events=True), self.column_range, thr)
-        b = label(code, feat, self.spec, dataclasses.replace(p.label, events=False), self.column_range, thr)
-        merge_maps(a, b)
-        return a
+        lp = dataclasses.replace(p.label, events=seg == "events")
+        return label(code, feat, self.spec, lp, self.column_range, thr)
+
+    def _decode_both(self, frame1: np.ndarray, frame2: np.ndarray) -> StripeMap:
+        """The default path, fused row by row (no full-image codes or differences): the same result as
+        label(events) and label(runs) merged by merge_maps."""
+        self._check_pair(frame1, frame2)
+        H, W = frame1.shape[:2]
+        p, lp, spec = self.params, self.params.label, self.spec
+        lin, dlin = self.luts(frame1.dtype)
+        use_range = self.column_range is not None
+        lo, hi = self.column_range if use_range else (EMPTY_RANGE, EMPTY_RANGE)
+        col_e = np.full((H, W), np.nan, np.float32)
+        chain_e = np.full((H, W), -1, np.int32)
+        col_r = np.full((H, W), np.nan, np.float32)
+        chain_r = np.full((H, W), -1, np.int32)
+        n_e, n_r = kernels.twoshot_rows(
+            frame1,
+            frame2,
+            lin,
+            dlin,
+            self.unmix,
+            np.float32(p.t_abs),
+            np.float32(p.t_rel),
+            np.float32(p.t_rel_edges),
+            p.block,
+            spec.weights,
+            spec.link_ok,
+            spec.table,
+            spec.k,
+            spec.period,
+            spec.stripe_width,
+            spec.n_copies,
+            spec.proj_width,
+            lp.gap_max,
+            lo,
+            hi,
+            use_range,
+            lp.edges,
+            lp.min_frac,
+            lp.smooth,
+            col_e,
+            chain_e,
+            col_r,
+            chain_r,
+        )
+        drop_e = drop_r = 0
+        if lp.vertical_tol > 0:
+            drop_e = kernels.vertical_check(col_e, chain_e, n_e, lp.vertical_tol, lp.min_support)
+            drop_r = kernels.vertical_check(col_r, chain_r, n_r, lp.vertical_tol, lp.min_support)
+        filled, clashes = kernels.merge_columns(col_e, chain_e, col_r, chain_r, n_e)
+        conf = np.isfinite(col_e).astype(np.float32)
+        return StripeMap(
+            col_e,
+            conf,
+            stripe_width=spec.stripe_width,
+            period=spec.period,
+            copy_known=use_range or spec.n_copies == 1,
+            chain=chain_e,
+            info={
+                "events": {"chains": int(n_e), "chains_dropped": int(drop_e)},
+                "runs": {"chains": int(n_r), "chains_dropped": int(drop_r)},
+                "filled": int(filled),
+                "clashes": int(clashes),
+            },
+        )
 
 
 def merge_maps(a: StripeMap, b: StripeMap, tol: float = 0.5) -> None:
