@@ -490,7 +490,7 @@ def sweep(tmp_path_factory) -> tuple[dict, dict, dict]:
                 "argv": argv[0].split() + argv[1:] if argv[0].startswith("sim ") else argv,
                 "err": str(errs / f"{i}.txt"),
                 "cwd": str(root),
-                "timeout": 40,
+                "timeout": CASE_TIMEOUT_S,
             }
         )
     # two runners, one per core: most cases spend their time starting up, not computing

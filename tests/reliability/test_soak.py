@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import pytest
+
 from app.bench.soak import format_table, soak
 from app.cli import main
 
 
+@pytest.mark.slow
 def test_short_soak_reports_consistent_figures():
     fig = soak(0.06, sample_s=1.0, sim_overrides={"camera_size": [320, 240]})
     assert fig["error"] == ""
