@@ -33,7 +33,7 @@ examples:
   slscan live                                   # the virtual rig (config/sim.yaml), operator window
   slscan live --headless --frames 600           # same loop, no window: prints the figures, saves the last scan
   slscan live --config rig.yaml                 # real camera, projector and trigger box
-  slscan live --headless --frames 300 --record rec/   # and record every tagged frame as a dump
+  slscan live --headless --frames 300 --record rec/   # and record the checked frames as a dump
 
 keys in the window: space = snapshot (depth TIFF, PLY, PNGs), r = start/stop recording,
 m = switch scheme, q / Esc = quit.
@@ -230,7 +230,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--headless", action="store_true", help="no window: run the loop, print figures, save the last scan")
     p.add_argument("--frames", type=int, metavar="N", help="stop after N camera frames (headless default 300)")
     p.add_argument("--out", metavar="DIR", help="headless: folder for the last scan (default live-YYYYmmdd-HHMMSS)")
-    p.add_argument("--record", metavar="DIR", help="record every tagged frame as a dump in DIR (must not exist)")
+    p.add_argument("--record", metavar="DIR", help="record the checked frames as a dump in DIR (must not exist)")
     p.add_argument("--png-level", type=int, default=0, metavar="L", help="PNG level for recordings (0 fastest; 1..9)")
     p.add_argument("--workers", type=int, default=1, help="decode threads (default 1)")
     p.add_argument("--timeout", type=float, default=2.0, metavar="S", help="camera timeout in seconds (default 2)")
