@@ -167,6 +167,7 @@ def build_cases(root: Path) -> Cases:
         "cfg_sim_scene_unknown": cfg("scene_unknown", sim_with(scene="no-such-scene")),
         "cfg_sim_faults_bad": cfg("faults", sim_with(faults=[{"kind": "explode", "at": 3}])),
         "cfg_sim_seed_string": cfg("seed", sim_with(seed="abc")),
+        "cfg_sim_seed_negative": cfg("seed_neg", sim_with(seed=-1)),
         "cfg_sim_buffer_zero": cfg("buffer", sim_with(buffer_frames=0)),
         "cfg_sim_effects_unknown": cfg("effects", sim_with(effects={"warp_drive": 1})),
         "cfg_missing_file": c.root / "files" / "missing.yaml",
@@ -255,9 +256,7 @@ def build_cases(root: Path) -> Cases:
     png_case("png_empty", lambda d: _frame(d, 1).write_bytes(b""))
     png_case("png_text", lambda d: _frame(d, 0).write_text("not a png"))
     png_case("png_wrong_size", lambda d: _write_png(_frame(d, 1), np.zeros((60, 80, 3), np.uint8)))
-    png_case("png_gray", lambda d: _write_png(_frame(d, 0), np.zeros((120, 160), np.uint8)))
     png_case("png_16bit_mixed", lambda d: _write_png(_frame(d, 1), np.zeros((120, 160, 3), np.uint16)))
-    png_case("png_rgba", lambda d: _write_png(_frame(d, 0), np.zeros((120, 160, 4), np.uint8)))
     png_case("png_1x1", lambda d: _write_png(_frame(d, 0), np.zeros((1, 1, 3), np.uint8)))
 
     # --- patterns.yaml and pattern images (inside a dump)
@@ -352,7 +351,7 @@ def build_cases(root: Path) -> Cases:
         "live --workers 0": ["live", "--headless", "--frames", "2", "--workers", "0"],
         "live --png-level -1": ["live", "--headless", "--frames", "2", "--png-level", "-1", "--record", out("lr")],
         "live --timeout 0": ["live", "--headless", "--frames", "2", "--timeout", "0"],
-        "decode --workers 0": ["decode", c.base, "--workers", "0", "--out", out("dw0")],
+        "decode --workers -1": ["decode", c.base, "--workers", "-1", "--out", out("dw0")],
         "decode --out is a file": ["decode", c.base, "--out", c.base / "dump.yaml"],
         "replay --frames 0": ["replay", c.base, "--headless", "--frames", "0", "--out", out("rf0")],
         "replay --workers -2": ["replay", c.base, "--headless", "--workers", "-2", "--out", out("rw")],
