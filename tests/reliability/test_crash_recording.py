@@ -103,3 +103,34 @@ def test_kill_9_of_slscan_dump_at_random_points(small_config, tmp_path, rig_sess
         listed = {f.file.split("/")[-1] for f in again.frames}
         assert {p.name for p in (folder / "frames").iterdir()} == listed  # no unindexed file left
         assert (folder / "dump.yaml").read_text().endswith("\n")
+
+
+def test_disk_full_mid_session_stops_recording_and_the_session_goes_on(rig_session, tmp_path):
+    """Frame files from the 10th on are the kernel's /dev/full (ENOSPC, as on a full disk): recording
+    stops with a message and keeps its 10 frames; capture and decoding carry on."""
+    from app.dump import DumpWriter
+    from app.pipeline import LivePipeline
+    from app.recorder import Recorder
+
+    from .conftest import make_loop, mispaired
+
+    session, processor = rig_session
+    dev = fresh_devices(session)
+    writer = DumpWriter(tmp_path / "rec", session.patterns, calibration=session.calibration)
+    for i in range(10, 200):
+        os.symlink("/dev/full", tmp_path / "rec" / "frames" / f"{i:06d}.tmp.png")
+    rec = Recorder(writer)
+    results = []
+    pipe = LivePipeline(
+        lambda: make_loop(session, dev), processor, max_frames=80, recorder=rec, on_result=results.append
+    )
+    pipe.start()
+    pipe.wait()
+    stats = rec.close()
+    assert pipe.error is None and pipe.capture.frames == 80  # the session did not stop
+    assert stats.written == 10 and "disk full" in rec.message and "10 frames" in rec.message, rec.message
+    late = [r.frameset for r in results if min(r.frameset.frame_ids) > 40]
+    assert late and mispaired(dev, late) == []  # decoding went on after the recording stopped
+    dump = read_dump(tmp_path / "rec")
+    assert len(dump.frames) == 10 and dump.dropped_tail == 0
+    assert all(dev.camera.truth(f.frame_id) == f.pattern for f in dump.frames)
