@@ -442,29 +442,24 @@ def _label_row(
         if smooth > 0 and nn > 2 * smooth:
             # noise in single edge positions averages out over a few neighbouring edges: replace each
             # node by a local straight-line fit x(v) over +-smooth nodes (surfaces are smooth within a chain)
+            # The nodes' v are equally spaced (one stripe apart), so the fit is a fixed linear filter:
+            # with window offsets q = 0..n-1 (n = 2 * smooth + 1) and the node at offset t, the fitted x
+            # is sum_q x_q * (1 / n + (q - smooth) * (t - smooth) / S), S = sum_q (q - smooth)**2.
+            nw = 2 * smooth + 1
+            S = 0.0
+            for q in range(nw):
+                S += (q - smooth) * (q - smooth)
             for r in range(nn):
                 a0 = r - smooth
                 if a0 < 0:
                     a0 = 0
-                a1 = a0 + 2 * smooth
-                if a1 > nn - 1:
-                    a1 = nn - 1
-                    a0 = a1 - 2 * smooth
-                sv = 0.0
-                sx = 0.0
-                svv = 0.0
-                svx = 0.0
-                cntn = a1 - a0 + 1
-                for q in range(a0, a1 + 1):
-                    sv += nv[q]
-                    sx += nx[q]
-                    svv += nv[q] * nv[q]
-                    svx += nv[q] * nx[q]
-                mv = sv / cntn
-                mx = sx / cntn
-                den = svv - cntn * mv * mv
-                slope_xv = (svx - cntn * mv * mx) / den if den > 0 else 0.0
-                sm[r] = mx + slope_xv * (nv[r] - mv)
+                if a0 + nw > nn:
+                    a0 = nn - nw
+                tc = (r - a0 - smooth) / S
+                acc = 0.0
+                for q in range(nw):
+                    acc += nx[a0 + q] * (1.0 / nw + (q - smooth) * tc)
+                sm[r] = acc
             for r in range(nn):
                 nx[r] = sm[r]
                 if r > 0 and nx[r] <= nx[r - 1]:
@@ -490,11 +485,12 @@ def _label_row(
         if use_range:
             # each pixel votes for the copy that puts its column inside its depth-range interval
             span = period * sw
+            inv_span = 1.0 / span  # a multiply, not a division per pixel (exact for the usual power-of-2 span)
             for q in range(n_copies):
                 votes[q] = 0
             for xx in range(xa, xb + 1):
                 v = colrow[xx]
-                q = int(np.ceil((lo[y, xx] - v) / span))
+                q = int(np.ceil((lo[y, xx] - v) * inv_span))
                 if q < 0:
                     q = 0
                 while q < n_copies:
