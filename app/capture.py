@@ -171,9 +171,12 @@ class FrameChecker:
     # ------------------------------------------------------------------ anchoring
 
     def anchor_trigger(self, tick_of_first_trigger: int) -> None:
-        """The trigger was (re)started so that its count 1 fires at this tick."""
+        """The trigger was (re)started so that its count 1 fires at this tick.
+
+        The last count seen is kept: the first frame of the new count goes back, so it is refused
+        (one frame) — and a count that restarts again before the next anchor is caught the same way.
+        """
         self._trigger_base = tick_of_first_trigger
-        self._last_trigger = None
 
     def anchor_frame_id(self, frame_id: int, tick: int) -> None:
         """Camera frame `frame_id` was exposed at `tick` (used when frames carry no trigger count)."""

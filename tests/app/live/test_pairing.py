@@ -59,6 +59,7 @@ def simulate(faults: list[str], scheme: str = "two-shot", n: int = 2, use_trigge
     if not use_trigger:
         checker.anchor_frame_id(100, 0)
     previous = "ok"
+    counted_since_reset = False
     for fault in faults:
         if fault == previous == "late_silent":
             # Late on every refresh is a projector running one frame behind: the pixels alternate
@@ -79,14 +80,20 @@ def simulate(faults: list[str], scheme: str = "two-shot", n: int = 2, use_trigge
         if fault == "late_unnoticed":
             kw["pattern"] = seen  # e.g. a MARK line read by the camera
         f = truth_frame(tick, seen, 100 + tick, rng, **kw)
+        if fault == "reset" and use_trigger and not counted_since_reset:
+            fault = "ok"  # a reset shows as a count going back: it needs a count seen before it (real
+            # boxes stop when they reset, so the loop restarts them before any frame of a new count)
         if fault == "reset" and use_trigger:
             # the box rebooted: this frame's count restarts at 1; the loop re-anchors a few ticks later
             f = dataclasses.replace(f, trigger_count=1)
             deliver(f)
             trig_base = tick  # the loop restarted the schedule: count k is now tick trig_base + k - 1
             checker.anchor_trigger(trig_base)
+            counted_since_reset = True  # the checker saw count 1: a second reset goes back to it
             tick += 1
             continue
+        if fault != "drop":
+            counted_since_reset = True
         if fault == "drop":
             pass
         elif fault == "swap":
