@@ -27,7 +27,7 @@ from app.cli import build_parser
 
 ROOT = Path(__file__).resolve().parents[2]
 RUNNERS = 2
-CASE_TIMEOUT_S = 15  # bad input is refused at once; a case still running after this accepted it
+CASE_TIMEOUT_S = 10  # bad input is refused at once; a case still running after this accepted it
 
 RUNNER = textwrap.dedent(
     """

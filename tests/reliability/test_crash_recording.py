@@ -77,6 +77,7 @@ def _kill_runs(config, tmp_path, rng) -> list:
     return done
 
 
+@pytest.mark.slow  # 30-60 s on the shared 2-core machine: 12 real `slscan dump` processes
 def test_kill_9_of_slscan_dump_at_random_points(small_config, tmp_path, rig_session):
     session, _ = rig_session
     dev = fresh_devices(session)
