@@ -137,8 +137,9 @@ def _write_png(path: Path, image: np.ndarray) -> None:
     path.write_bytes(buf.tobytes())
 
 
-def build_cases(root: Path) -> Cases:
-    c = Cases(root, _base_dump(root))
+def build_cases(root: Path, base: Path | None = None) -> Cases:
+    """Every case: id -> argv, with its files written under root (base: a valid dump to mutate)."""
+    c = Cases(root, base or _base_dump(root))
 
     # --- config YAML (slscan dump / live read it before opening any device)
     def cfg(name: str, data: object | None = None, text: str | bytes | None = None) -> Path:
@@ -506,10 +507,8 @@ def sweep(tmp_path_factory) -> tuple[dict, dict, dict]:
     return cases.table, codes, stderr
 
 
-CASE_IDS: list[str] = []  # filled at collection time from the same table builder (no files made)
-
-
 def _case_ids() -> list[str]:
+    """The case ids at collection time, from the same table builder over a stand-in dump (no slscan run)."""
     import tempfile
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -524,13 +523,7 @@ def _case_ids() -> list[str]:
         (base / "frames").mkdir()
         for i in range(2):
             (base / "frames" / f"{i:06d}.png").write_bytes(b"")
-        global _base_dump
-        real = _base_dump
-        _base_dump = lambda r: base  # noqa: E731
-        try:
-            return list(build_cases(root).table)
-        finally:
-            _base_dump = real
+        return list(build_cases(root, base).table)
 
 
 @pytest.mark.parametrize("cid", _case_ids())
