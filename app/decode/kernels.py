@@ -970,3 +970,88 @@ def twoshot_rows(
             else:
                 n_r = nc
     return n_e, n_r
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _vertical_votes(col, chain, tol, agree, disagree, npx):
+    """vertical_check's counts: per chain, labelled pixels and agreeing / disagreeing vertical neighbours."""
+    H, W = col.shape
+    for y in range(H):
+        for x in range(W):
+            c = chain[y, x]
+            if c < 0:
+                continue
+            npx[c] += 1
+            v = col[y, x]
+            if y > 0 and chain[y - 1, x] >= 0:
+                if abs(col[y - 1, x] - v) <= tol:
+                    agree[c] += 1
+                else:
+                    disagree[c] += 1
+            if y + 1 < H and chain[y + 1, x] >= 0:
+                if abs(col[y + 1, x] - v) <= tol:
+                    agree[c] += 1
+                else:
+                    disagree[c] += 1
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _chain_drops(agree, disagree, npx, n_chains, min_support):
+    drop = np.zeros(max(n_chains, 1), np.bool_)
+    dropped = 0
+    for c in range(n_chains):
+        if disagree[c] >= agree[c] or agree[c] < min_support * npx[c]:
+            drop[c] = True
+            dropped += 1
+    return drop, dropped
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def vertical_merge(col_e, chain_e, n_e, col_r, chain_r, n_r, tol, min_support, conf):
+    """vertical_check on both maps, then merge_columns (b = runs into a = events), in two passes.
+
+    Writes the merged result into col_e/chain_e and conf (1 where a value, else 0). tol <= 0 skips
+    the vertical check. Returns (dropped events chains, dropped runs chains, filled, clashes).
+    """
+    H, W = col_e.shape
+    ne = max(n_e, 1)
+    nr = max(n_r, 1)
+    agree_e = np.zeros(ne, np.int32)
+    dis_e = np.zeros(ne, np.int32)
+    npx_e = np.zeros(ne, np.int32)
+    agree_r = np.zeros(nr, np.int32)
+    dis_r = np.zeros(nr, np.int32)
+    npx_r = np.zeros(nr, np.int32)
+    check = tol > 0
+    if check:
+        _vertical_votes(col_e, chain_e, tol, agree_e, dis_e, npx_e)
+        _vertical_votes(col_r, chain_r, tol, agree_r, dis_r, npx_r)
+    drop_e, dropped_e = _chain_drops(agree_e, dis_e, npx_e, n_e if check else 0, min_support)
+    drop_r, dropped_r = _chain_drops(agree_r, dis_r, npx_r, n_r if check else 0, min_support)
+    filled = 0
+    clashes = 0
+    for y in range(H):
+        for x in range(W):
+            ce = chain_e[y, x]
+            cr = chain_r[y, x]
+            ok_e = ce >= 0 and not drop_e[ce]
+            ok_r = cr >= 0 and not drop_r[cr]
+            if ok_e:
+                if ok_r and abs(col_e[y, x] - col_r[y, x]) > 0.5:
+                    col_e[y, x] = np.nan
+                    chain_e[y, x] = -1
+                    conf[y, x] = 0.0
+                    clashes += 1
+                else:
+                    conf[y, x] = 1.0
+            elif ok_r:
+                col_e[y, x] = col_r[y, x]
+                chain_e[y, x] = cr + n_e
+                conf[y, x] = 1.0
+                filled += 1
+            else:
+                if ce >= 0:
+                    col_e[y, x] = np.nan
+                    chain_e[y, x] = -1
+                conf[y, x] = 0.0
+    return dropped_e, dropped_r, filled, clashes

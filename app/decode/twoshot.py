@@ -180,12 +180,10 @@ class TwoShotDecoder:
             col_r,
             chain_r,
         )
-        drop_e = drop_r = 0
-        if lp.vertical_tol > 0:
-            drop_e = kernels.vertical_check(col_e, chain_e, n_e, lp.vertical_tol, lp.min_support)
-            drop_r = kernels.vertical_check(col_r, chain_r, n_r, lp.vertical_tol, lp.min_support)
-        filled, clashes = kernels.merge_columns(col_e, chain_e, col_r, chain_r, n_e)
-        conf = np.isfinite(col_e).astype(np.float32)
+        conf = np.empty((H, W), np.float32)
+        drop_e, drop_r, filled, clashes = kernels.vertical_merge(
+            col_e, chain_e, n_e, col_r, chain_r, n_r, lp.vertical_tol, lp.min_support, conf
+        )
         return StripeMap(
             col_e,
             conf,
