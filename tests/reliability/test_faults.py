@@ -41,19 +41,26 @@ def run(session, processor, loop_factory, frames: int, recorder=None):
 def test_camera_stalls_2s_then_resumes(rig_session):
     session, processor = rig_session
     # the first of ticks 20..59 the camera delivers stalls; after it the camera is ~120 ticks ahead
-    # and skips past the rest (a loaded machine may skip tick 20 itself)
+    # and skips past the rest (a loaded machine may skip tick 20 itself), so ids > 120 come after it
     dev = fresh_devices(session, [{"kind": "stall", "at": list(range(20, 60)), "seconds": 2.0}])
+    results = []
+
+    def collect(res) -> None:
+        results.append(res)
+        if sum(1 for r in results if min(r.frameset.frame_ids) > 120) >= 5:
+            pipe.stop()  # pairing and decoding resumed after the stall: enough seen
+
     t0 = time.monotonic()
-    pipe, sets = run(session, processor, lambda: make_loop(session, dev, timeout_s=3.0), frames=70)
+    pipe = LivePipeline(lambda: make_loop(session, dev, timeout_s=3.0), processor, max_frames=1500, on_result=collect)
+    pipe.start()
+    pipe.wait()
     assert time.monotonic() - t0 >= 2.0
-    assert pipe.error is None  # 2 s < the 3 s timeout: the session goes on
-    cap = pipe.capture
-    assert cap.frames == 70
+    assert pipe.error is None  # 2 s < the 3 s timeout: the session went on
     # ~120 ticks passed during the stall; the camera kept its last 8 frames, the rest show as a gap
-    assert cap.dropped >= 100, cap
+    assert pipe.capture.dropped >= 100, pipe.capture
+    sets = [r.frameset for r in results]
     assert mispaired(dev, sets) == []
-    after = [fs for fs in sets if min(fs.frame_ids) > 120]
-    assert len(after) >= 5  # pairing resumed after the stall
+    assert sum(1 for fs in sets if min(fs.frame_ids) > 120) >= 5, pipe.capture
 
 
 @pytest.fixture(scope="module")
@@ -140,7 +147,8 @@ class VsyncBridge:
 @pytest.fixture
 def box(tmp_path):
     with TriggerBoxEmulator(link=tmp_path / "ttyTRIG") as emu:
-        trig = SerialTriggerBox(str(emu.port), cycle=2, source="ext", timeout_s=0.3)
+        # 1 s: the emulator's thread shares two loaded cores with the whole session
+        trig = SerialTriggerBox(str(emu.port), cycle=2, source="ext", timeout_s=1.0)
         try:
             yield emu, trig
         finally:

@@ -52,7 +52,7 @@ def test_repeated_sessions_on_the_serial_trigger_box_leak_nothing(rig_session, t
         baseline = None
         for k in range(4):
             dev = fresh_devices(session, stepped=True, seed=k)
-            trig = SerialTriggerBox(str(emu.port), cycle=2, source="ext", timeout_s=0.3)
+            trig = SerialTriggerBox(str(emu.port), cycle=2, source="ext", timeout_s=1.0)
             with VsyncBridge(emu, dev):
                 pipe = LivePipeline(lambda d=dev, t=trig: make_loop(session, d, trigger=t), processor, max_frames=20)
                 pipe.start()
