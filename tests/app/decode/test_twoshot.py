@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from synth import make_calibration, plane_depth, render
 
 from app.decode import reference
-from app.decode.twoshot import TwoShotDecoder, TwoShotParams
+from app.decode.twoshot import TwoShotDecoder, TwoShotParams, merge_maps
+from app.decode.windows import label
 from app.patterns import two_shot_patterns
 from app.triangulate import Triangulator
 
@@ -117,3 +120,17 @@ def test_crosstalk_is_unmixed_on_a_blue_surface():
     c_unmixed, cov_unmixed, _ = score(unmixed.decode(f1, f2).column, truth)
     assert c_unmixed >= 0.995 and cov_unmixed >= 0.85
     assert cov_plain < 0.5 * cov_unmixed or c_plain < 0.99  # without unmixing the weak channel is wrong
+
+
+def test_fused_path_equals_the_two_labellings_merged(scene):
+    # the default "both" path runs fused row by row; it must give exactly what the separate steps give
+    _, _, f1, f2, _, _, dec = scene
+    code, feat, thr = dec.classify(f1, f2)
+    lp = dec.params.label
+    a = label(code, feat, dec.spec, dataclasses.replace(lp, events=True), dec.column_range, thr)
+    b = label(code, feat, dec.spec, dataclasses.replace(lp, events=False), dec.column_range, thr)
+    merge_maps(a, b)
+    fused = dec.decode(f1, f2)
+    np.testing.assert_array_equal(fused.column, a.column)
+    np.testing.assert_array_equal(fused.confidence, a.confidence)
+    assert fused.info["filled"] == a.info["filled"] and fused.info["clashes"] == a.info["clashes"]
