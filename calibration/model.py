@@ -12,6 +12,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import yaml
 
 from app.errors import InputError
 
@@ -82,59 +83,47 @@ class Calibration:
         path = Path(path)
         if not path.is_file():
             raise InputError(f"{path}: calibration file not found")
-        try:
-            fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
-        except (cv2.error, SystemError):  # OpenCV's parser raises either on malformed files
-            raise InputError(f"{path}: not an OpenCV FileStorage YAML calibration") from None
-        if not fs.isOpened():
-            raise InputError(f"{path}: not an OpenCV FileStorage YAML calibration")
-        try:
+        doc = read_filestorage_yaml(path)
 
-            def mat(key: str, shape: tuple[int, ...]) -> np.ndarray:
-                node = fs.getNode(key)
-                if node.empty():
-                    raise InputError(f"{path}: missing field '{key}'")
-                try:
-                    m = node.mat()
-                except (cv2.error, SystemError):
-                    m = None
-                if m is None:
-                    raise InputError(f"{path}: field '{key}' is not a matrix")
-                m = np.asarray(m, np.float64)
-                if m.size != int(np.prod(shape)):
-                    raise InputError(f"{path}: field '{key}' has {m.size} values, expected {int(np.prod(shape))}")
-                if not np.all(np.isfinite(m)):
-                    raise InputError(f"{path}: field '{key}' has non-finite values")
-                return m.reshape(shape)
+        def mat(key: str, shape: tuple[int, ...]) -> np.ndarray:
+            if key not in doc:
+                raise InputError(f"{path}: missing field '{key}'")
+            m = doc[key]
+            if not isinstance(m, np.ndarray):
+                raise InputError(f"{path}: field '{key}' is not a matrix")
+            if m.size != int(np.prod(shape)):
+                raise InputError(f"{path}: field '{key}' has {m.size} values, expected {int(np.prod(shape))}")
+            if not np.all(np.isfinite(m)):
+                raise InputError(f"{path}: field '{key}' has non-finite values")
+            return m.reshape(shape)
 
-            def size(key: str) -> tuple[int, int]:
-                v = mat(key, (2,))
-                if np.any(v < 1) or np.any(v != np.round(v)):
-                    raise InputError(f"{path}: field '{key}' must be two positive integers [w, h]")
-                return int(v[0]), int(v[1])
+        def size(key: str) -> tuple[int, int]:
+            v = mat(key, (2,))
+            if np.any(v < 1) or np.any(v > 1 << 16) or np.any(v != np.round(v)):
+                raise InputError(f"{path}: field '{key}' must be two positive integers [w, h]")
+            return int(v[0]), int(v[1])
 
-            rms = {}
-            for key in RMS_KEYS:
-                node = fs.getNode(key)
-                if not node.empty():
-                    rms[key] = float(node.real())
-            mixing = None if fs.getNode("color_mixing").empty() else mat("color_mixing", (3, 3))
-            extra = _read_extra(fs, path)
-            cal = cls(
-                camera_size=size("camera_size"),
-                camera_matrix=mat("camera_matrix", (3, 3)),
-                camera_distortion=mat("camera_distortion", (5,)),
-                projector_size=size("projector_size"),
-                projector_matrix=mat("projector_matrix", (3, 3)),
-                projector_distortion=mat("projector_distortion", (5,)),
-                R=mat("R", (3, 3)),
-                T=mat("T", (3,)),
-                rms=rms,
-                color_mixing=mixing,
-                extra=extra,
-            )
-        finally:
-            fs.release()
+        rms = {}
+        for key in RMS_KEYS:
+            if key in doc:
+                value = _number(doc[key])
+                if value is None:
+                    raise InputError(f"{path}: field '{key}' must be a number")
+                rms[key] = value
+        mixing = mat("color_mixing", (3, 3)) if "color_mixing" in doc else None
+        cal = cls(
+            camera_size=size("camera_size"),
+            camera_matrix=mat("camera_matrix", (3, 3)),
+            camera_distortion=mat("camera_distortion", (5,)),
+            projector_size=size("projector_size"),
+            projector_matrix=mat("projector_matrix", (3, 3)),
+            projector_distortion=mat("projector_distortion", (5,)),
+            R=mat("R", (3, 3)),
+            T=mat("T", (3,)),
+            rms=rms,
+            color_mixing=mixing,
+            extra=_extra(doc),
+        )
         cal.check(str(path))
         return cal
 
@@ -165,26 +154,86 @@ KNOWN_KEYS = {
 }  # fmt: skip
 
 
-def _read_extra(fs: cv2.FileStorage, path: Path) -> dict[str, np.ndarray | float]:
+def _number(value: object) -> float | None:
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, int | float):
+        return float(value)
+    if isinstance(value, str):  # PyYAML leaves e.g. "1e-05" (no dot) as a string
+        try:
+            return float(value)
+        except ValueError:
+            return None
+    return None
+
+
+def _extra(doc: dict) -> dict[str, np.ndarray | float]:
     """Every other top-level number or matrix (e.g. camera_gamma, response curves) into `extra`."""
     extra: dict[str, np.ndarray | float] = {}
-    root = fs.root()
-    for key in root.keys():
+    for key, value in doc.items():
         if key in KNOWN_KEYS:
             continue
-        node = fs.getNode(key)
-        if node.isReal() or node.isInt():
-            extra[key] = float(node.real())
-        elif not node.isMap() and not node.isSeq():
-            continue
-        else:
-            try:
-                m = node.mat()
-            except (cv2.error, SystemError):
-                m = None
-            if m is not None and np.all(np.isfinite(m)):
-                extra[key] = np.asarray(m, np.float64)
+        if isinstance(value, np.ndarray):
+            if np.all(np.isfinite(value)):
+                extra[key] = value
+        elif (number := _number(value)) is not None:
+            extra[key] = number
     return extra
+
+
+class _BadMatrixError(ValueError):
+    pass
+
+
+class _FileStorageLoader(yaml.SafeLoader):
+    """PyYAML's safe loader plus OpenCV's `!!opencv-matrix` tag (rows, cols, dt, data)."""
+
+
+def _construct_matrix(loader: yaml.SafeLoader, node: yaml.Node) -> np.ndarray:
+    if not isinstance(node, yaml.MappingNode):
+        raise _BadMatrixError("an opencv-matrix must be a mapping")
+    m = loader.construct_mapping(node, deep=True)
+    rows, cols, data = m.get("rows"), m.get("cols"), m.get("data")
+    if not (isinstance(rows, int) and isinstance(cols, int) and 0 < rows <= 4096 and 0 < cols <= 4096):
+        raise _BadMatrixError("an opencv-matrix needs positive integer rows and cols")
+    if not isinstance(data, list) or len(data) != rows * cols:
+        raise _BadMatrixError(f"an opencv-matrix of {rows}x{cols} needs {rows * cols} data values")
+    values = [_number(v) for v in data]
+    if any(v is None for v in values):
+        raise _BadMatrixError("an opencv-matrix has a value that is not a number")
+    return np.array(values, np.float64).reshape(rows, cols)
+
+
+_FileStorageLoader.add_constructor("tag:yaml.org,2002:opencv-matrix", _construct_matrix)
+
+
+def read_filestorage_yaml(path: Path) -> dict:
+    """Read an OpenCV FileStorage YAML file in Python.
+
+    OpenCV's own parser aborts the whole process (heap corruption) on some malformed files, so a
+    calibration written by cv2.FileStorage is read back with PyYAML's safe loader instead.
+    """
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except (OSError, UnicodeDecodeError):
+        raise InputError(f"{path}: not a text (OpenCV FileStorage YAML) calibration file") from None
+    lines = text.splitlines()
+    if lines and lines[0].startswith("%YAML"):  # OpenCV writes "%YAML:1.0" or "%YAML 1.2"
+        lines = lines[1:]
+    try:
+        loader = _FileStorageLoader("\n".join(lines))
+        try:
+            doc = loader.get_single_data()
+        finally:
+            loader.dispose()
+    except _BadMatrixError as exc:
+        raise InputError(f"{path}: {exc}") from None
+    except (yaml.YAMLError, ValueError, TypeError, RecursionError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"{path}: not an OpenCV FileStorage YAML calibration ({first})") from None
+    if not isinstance(doc, dict):
+        raise InputError(f"{path}: not an OpenCV FileStorage YAML calibration (expected a mapping)")
+    return doc
 
 
 def _dist5(d: np.ndarray) -> np.ndarray:
