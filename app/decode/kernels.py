@@ -289,6 +289,48 @@ def _sign_events(feat, thr_map, y, c, gap_max, ex, es, et):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _event_runs2(ex, es, et, n0, n1, rs, re, rc, link, edge, left, right):
+    """_event_runs' merge of the channels' events, written out for two channels with the state in locals
+    (the general loop over channels cost more than finding the events). Ties go to channel 0, as there."""
+    p0 = 0
+    p1 = 0
+    s0 = 0
+    s1 = 0
+    nr = 0
+    active = False
+    while p0 < n0 or p1 < n1:
+        if p1 >= n1 or (p0 < n0 and ex[0, p0] <= ex[1, p1]):
+            bx = ex[0, p0]
+            s0 = es[0, p0]
+            kind = et[0, p0]
+            p0 += 1
+        else:
+            bx = ex[1, p1]
+            s1 = es[1, p1]
+            kind = et[1, p1]
+            p1 += 1
+        if active:
+            right[nr - 1] = bx
+        was = active
+        active = s0 != 0 and s1 != 0
+        if active:
+            left[nr] = bx
+            right[nr] = bx
+            rc[nr] = (1 if s0 < 0 else 0) | (2 if s1 < 0 else 0)
+            if nr > 0:
+                link[nr - 1] = was and kind == 1
+                if link[nr - 1]:
+                    edge[nr - 1] = bx
+            nr += 1
+    for j in range(nr):
+        rs[j] = int(np.ceil(left[j]))
+        re[j] = int(np.floor(right[j]))
+    if nr > 0:
+        link[nr - 1] = False
+    return nr
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _event_runs(feat, noise, y, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right):
     """Two-shot stripes of row y from the zero crossings of each channel's difference.
 
@@ -299,6 +341,8 @@ def _event_runs(feat, noise, y, gap_max, ex, es, et, cnt, rs, re, rc, link, edge
     m = feat.shape[2]
     for c in range(m):
         cnt[c] = _sign_events(feat, noise, y, c, gap_max, ex[c], es[c], et[c])
+    if m == 2:
+        return _event_runs2(ex, es, et, cnt[0], cnt[1], rs, re, rc, link, edge, left, right)
     ptr = np.zeros(3, np.int64)
     sign = np.zeros(3, np.int64)
     nr = 0
