@@ -217,14 +217,19 @@ def _pixel_runs(code, feat, wts, link_ok, y, gap_max, rs, re, rc, link, edge, le
         mid = 0.5 * (re[j] + rs[j + 1])
         best = mid
         bestd = 1e9
+        # linked stripes differ in one channel (link_ok), so the edge signal is that channel's d, signed
+        cs = 0
+        while cs + 1 < C and wts[a, b, cs] == 0:
+            cs += 1
+        w = wts[a, b, cs]
         for xx in range(xa, xb):
-            s0 = 0.0
-            s1 = 0.0
-            for c in range(C):
-                w = wts[a, b, c]
-                if w != 0:
-                    s0 += w * feat[y, xx, c]
-                    s1 += w * feat[y, xx + 1, c]
+            s0 = 0.0 + w * feat[y, xx, cs]
+            s1 = 0.0 + w * feat[y, xx + 1, cs]
+            for c in range(cs + 1, C):  # only if a transition ever has several channels' weights
+                wc = wts[a, b, c]
+                if wc != 0:
+                    s0 += wc * feat[y, xx, c]
+                    s1 += wc * feat[y, xx + 1, c]
             if s0 > 0 and s1 <= 0:
                 xz = xx + s0 / (s0 - s1)
                 if abs(xz - mid) < bestd:
