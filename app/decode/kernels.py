@@ -886,29 +886,6 @@ def _classify_row_any(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, blo
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def merge_columns(a_col, a_chain, b_col, b_chain, off):
-    """merge_maps in one pass: fill a's gaps from b (chains renumbered from off), none where both differ by
-    more than 0.5 px. Returns (filled, clashes)."""
-    H, W = a_col.shape
-    filled = 0
-    clashes = 0
-    for y in range(H):
-        for x in range(W):
-            va = a_col[y, x]
-            vb = b_col[y, x]
-            if va != va:
-                if vb == vb:
-                    a_col[y, x] = vb
-                    a_chain[y, x] = b_chain[y, x] + off
-                    filled += 1
-            elif vb == vb and abs(va - vb) > 0.5:
-                a_col[y, x] = np.nan
-                a_chain[y, x] = -1
-                clashes += 1
-    return filled, clashes
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
 def twoshot_rows(
     f1,
     f2,
