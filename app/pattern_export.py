@@ -10,7 +10,7 @@ import yaml
 
 from app.errors import InputError
 from app.imageio import read_rgb, write_rgb
-from app.patterns import SCHEMES, PatternSet
+from app.patterns import CHANNEL_INDEX, PALETTE, SCHEMES, PatternSet, window_table
 
 FILENAME = "patterns.yaml"
 
@@ -63,7 +63,60 @@ def read_patterns_meta(folder: str | os.PathLike) -> dict:
     for key in needed:
         if key not in meta:
             raise InputError(f"{path}: missing field '{key}' for scheme {meta['scheme']}")
+    _check_stripe_fields(meta, path)
     return meta
+
+
+def _is_int(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _check_stripe_fields(meta: dict, path: Path) -> None:
+    """Types and values of the fields a decoder relies on: a bad export is refused here, not mid-decode."""
+    scheme = meta["scheme"]
+    if scheme == "graycode":
+        frames = meta["frames"]
+        if not (isinstance(frames, list) and len(frames) == len(meta["images"])):
+            raise InputError(f"{path}: field 'frames' must list one role per image")
+        for i, role in enumerate(frames):
+            if not (isinstance(role, dict) and role.get("kind") in ("white", "black", "column", "row")):
+                raise InputError(f"{path}: frames[{i}] must have kind white, black, column or row")
+            if role["kind"] in ("column", "row") and not (
+                _is_int(role.get("bit")) and 0 <= role["bit"] < 16 and isinstance(role.get("inverse"), bool)
+            ):
+                raise InputError(f"{path}: frames[{i}] needs bit (0..15) and inverse (true/false)")
+        return
+    k, width, seq = meta["k"], meta["stripe_width"], meta["sequence"]
+    if not (_is_int(k) and 1 <= k <= 32):
+        raise InputError(f"{path}: field 'k' must be a whole number from 1 to 32")
+    if not (_is_int(width) and width >= 1):
+        raise InputError(f"{path}: field 'stripe_width' must be a whole number >= 1")
+    if scheme == "two-shot":
+        channels = meta["channels"]
+        if not (
+            isinstance(channels, str)
+            and channels
+            and set(channels) <= set(CHANNEL_INDEX)
+            and len(set(channels)) == len(channels)
+        ):
+            raise InputError(f"{path}: field 'channels' must be distinct letters from RGB (e.g. GB)")
+        n_codes = 2 ** len(channels)
+    else:
+        colors = meta["colors"]
+        if not (
+            isinstance(colors, str)
+            and len(colors) >= 2
+            and set(colors) <= set(PALETTE)
+            and len(set(colors)) == len(colors)
+        ):
+            raise InputError(f"{path}: field 'colors' must be 2 or more distinct letters from {''.join(PALETTE)}")
+        n_codes = len(colors)
+    if not (isinstance(seq, list) and len(seq) >= k and all(_is_int(c) and 0 <= c < n_codes for c in seq)):
+        raise InputError(f"{path}: field 'sequence' must be a list of at least k codes from 0 to {n_codes - 1}")
+    try:
+        window_table(seq, k)
+    except ValueError:
+        raise InputError(f"{path}: field 'sequence' repeats a window of k={k} stripes: it cannot be decoded") from None
 
 
 def read_patterns(folder: str | os.PathLike) -> PatternSet:

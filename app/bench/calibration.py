@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from app.argtypes import non_negative_int, positive_int
+
 FLAG = "--calibration"
 KEY = "calibration"
 HELP = "calibration accuracy on the virtual rig: RMS, focal, principal point, baseline, rotation, plane depth"
@@ -36,9 +38,13 @@ TARGETS = {
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--calibration-poses", type=int, default=15, metavar="N", help="board poses (default 15)")
+    parser.add_argument(
+        "--calibration-poses", type=positive_int, default=15, metavar="N", help="board poses (default 15)"
+    )
     parser.add_argument("--calibration-scene", default="checkerboard", help="board scene (checkerboard, charuco)")
-    parser.add_argument("--calibration-seed", type=int, default=0, metavar="S", help="pose seed (default 0)")
+    parser.add_argument(
+        "--calibration-seed", type=non_negative_int, default=0, metavar="S", help="pose seed (default 0)"
+    )
 
 
 def plane_depth(cal, truth, decode) -> dict[str, float]:

@@ -18,6 +18,8 @@ import time
 
 import numpy as np
 
+from app.argtypes import positive_int
+
 FLAG = "--live"
 KEY = "live"
 HELP = "live session on the virtual rig: frames/s in, depth maps/s out, latency, mispaired, recording"
@@ -32,11 +34,17 @@ FAULTS = [
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--live-frames", type=int, default=600, metavar="N", help="frames per live/record run (live)")
     parser.add_argument(
-        "--live-pairing-frames", type=int, default=10_000, metavar="M", help="frames with injected faults (live)"
+        "--live-frames", type=positive_int, default=600, metavar="N", help="frames per live/record run (live)"
     )
-    parser.add_argument("--live-workers", type=int, default=1, metavar="W", help="decode threads (live)")
+    parser.add_argument(
+        "--live-pairing-frames",
+        type=positive_int,
+        default=10_000,
+        metavar="M",
+        help="frames with injected faults (live)",
+    )
+    parser.add_argument("--live-workers", type=positive_int, default=1, metavar="W", help="decode threads (live)")
 
 
 def _live_row(frames: int, workers: int) -> dict:

@@ -8,6 +8,8 @@ import time
 import cv2
 import numpy as np
 
+from app.argtypes import positive_int
+
 FLAG = "--render"
 KEY = "render"
 HELP = "virtual rig: per-frame render time on one core at 640x480 and 1280x1024 (after per-scene precomputation)"
@@ -17,7 +19,9 @@ SIZES = ((640, 480), (1280, 1024))
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--render-scene", default="face", metavar="NAME", help="scene for --render (default face)")
-    parser.add_argument("--render-frames", type=int, default=60, metavar="N", help="frames timed per size (default 60)")
+    parser.add_argument(
+        "--render-frames", type=positive_int, default=60, metavar="N", help="frames timed per size (default 60)"
+    )
 
 
 def run(args: argparse.Namespace) -> list[dict]:

@@ -20,6 +20,8 @@ import threading
 import time
 from collections import deque
 
+from app.argtypes import positive_float, positive_int
+
 FLAG = "--soak"
 KEY = "soak"
 HELP = "soak: the live pipeline headless on the virtual rig for --minutes M; memory, threads, fds, pairing drift"
@@ -35,12 +37,14 @@ TAIL_SETS = 200  # the last decoded sets, checked apart: "no drift at the end"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--minutes", type=float, default=30.0, metavar="M", help="soak length in minutes (soak)")
     parser.add_argument(
-        "--soak-sample", type=float, default=30.0, metavar="S", help="seconds between resource samples (soak)"
+        "--minutes", type=positive_float, default=30.0, metavar="M", help="soak length in minutes (soak)"
+    )
+    parser.add_argument(
+        "--soak-sample", type=positive_float, default=30.0, metavar="S", help="seconds between resource samples (soak)"
     )
     parser.add_argument("--soak-clean", action="store_true", help="no injected faults (soak)")
-    parser.add_argument("--soak-workers", type=int, default=1, metavar="W", help="decode threads (soak)")
+    parser.add_argument("--soak-workers", type=positive_int, default=1, metavar="W", help="decode threads (soak)")
 
 
 # ------------------------------------------------------------------------------------ process figures

@@ -14,6 +14,8 @@ import time
 
 import numpy as np
 
+from app.argtypes import positive_int
+
 FLAG = "--speed"
 KEY = "speed"
 HELP = "decode + triangulate time per frame set (one core) at 640x480, 1280x1024, 1920x1080"
@@ -22,7 +24,9 @@ RESOLUTIONS = ((640, 480), (1280, 1024), (1920, 1080))
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--speed-repeats", type=int, default=30, metavar="N", help="timed repeats per case (speed)")
+    parser.add_argument(
+        "--speed-repeats", type=positive_int, default=30, metavar="N", help="timed repeats per case (speed)"
+    )
     parser.add_argument(
         "--speed-schemes", default="two-shot", metavar="LIST", help="schemes to time, comma-separated (speed)"
     )

@@ -11,6 +11,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from app.argtypes import non_negative_int, positive_float, positive_int
 from app.errors import InputError
 
 HELP = "calibrate camera and projector with a printed board and Gray code (wizard, --auto, --from)"
@@ -36,16 +37,21 @@ def register(sub: argparse._SubParsersAction) -> None:
     src.add_argument("--from", dest="from_dir", metavar="DIR", help="solve a saved calibration capture")
     src.add_argument("--auto", action="store_true", help="virtual rig: pose the simulated board automatically")
     p.add_argument("--out", required=True, metavar="FILE", help="calibration YAML to write")
-    p.add_argument("--poses", type=int, default=15, metavar="N", help="--auto: number of board poses (default 15)")
+    p.add_argument(
+        "--poses", type=positive_int, default=15, metavar="N", help="--auto: number of board poses (default 15)"
+    )
     p.add_argument("--scene", default="checkerboard", help="--auto / wizard: board scene (checkerboard, charuco)")
-    p.add_argument("--seed", type=int, default=0, help="--auto: pose and noise seed")
+    p.add_argument("--seed", type=non_negative_int, default=0, help="--auto: pose and noise seed")
     p.add_argument(
         "--capture",
         metavar="DIR",
         help="where --auto / the wizard save the capture (default: FILE without .yaml + .capture)",
     )
     p.add_argument(
-        "--camera-gamma", type=float, metavar="G", help="camera response exponent (default: as recorded, else 1)"
+        "--camera-gamma",
+        type=positive_float,
+        metavar="G",
+        help="camera response exponent (default: as recorded, else 1)",
     )
     p.add_argument("--config", metavar="FILE", help="wizard: rig configuration (default config/sim.yaml)")
     p.add_argument("--force", action="store_true", help="write the file even if the solve fails its checks")

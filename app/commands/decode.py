@@ -11,6 +11,7 @@ from pathlib import Path
 
 import cv2
 
+from app.argtypes import non_negative_int
 from app.decode.pipeline import EmptyResultWarning, FrameSetDecoder
 from app.dump import Dump, read_dump
 from app.errors import InputError
@@ -41,7 +42,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("dump", metavar="DUMP", help="frame dump folder (format slscan-dump v1)")
     p.add_argument("--out", required=True, metavar="OUT", help="output folder (must not exist or be empty)")
     p.add_argument("--calibration", metavar="FILE", help="calibration YAML (default: the dump's own)")
-    p.add_argument("--workers", type=int, default=0, metavar="N", help="processes (default: all cores)")
+    p.add_argument("--workers", type=non_negative_int, default=0, metavar="N", help="processes (default: all cores)")
     p.add_argument("--disjoint", action="store_true", help="two-shot: disjoint pairs (1-2, 3-4) instead of sliding")
     p.add_argument("--png16", action="store_true", help="also write depth_NNNNNN.png (16-bit, 0.1 mm units)")
     p.add_argument("--preview", action="store_true", help="also write preview_NNNNNN.png (colourised depth)")

@@ -6,6 +6,7 @@ import argparse
 import sys
 import time
 
+from app.argtypes import positive_float, positive_int
 from app.dump import repair_dump
 from app.errors import InputError
 from app.patterns import SCHEMES
@@ -35,10 +36,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--config", metavar="FILE", help="rig configuration (default: config/sim.yaml, the virtual rig)")
     p.add_argument("--scheme", choices=SCHEMES, help="pattern scheme (default: the config's scheme.name)")
-    p.add_argument("--frames", type=int, metavar="N", help="number of camera frames to record")
+    p.add_argument("--frames", type=positive_int, metavar="N", help="number of camera frames to record")
     p.add_argument("--out", metavar="DIR", help="the new dump folder (must not exist, or be empty)")
     p.add_argument("--png-level", type=int, default=0, metavar="L", help="PNG compression 0..9 (default 0: fastest)")
-    p.add_argument("--timeout", type=float, default=2.0, metavar="S", help="camera timeout in seconds (default 2)")
+    p.add_argument(
+        "--timeout", type=positive_float, default=2.0, metavar="S", help="camera timeout in seconds (default 2)"
+    )
     p.add_argument("--repair", metavar="DUMP", help="repair a dump whose writer was killed, and exit")
     p.set_defaults(func=run)
 

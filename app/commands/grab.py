@@ -8,6 +8,7 @@ import time
 
 import yaml
 
+from app.argtypes import positive_float, positive_int
 from app.config import load_config
 from app.errors import InputError
 from app.fsutil import atomic_directory
@@ -46,9 +47,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--camera", metavar="SPEC", help="camera to grab from (see below); default: the config's camera")
     p.add_argument("--config", metavar="FILE", help="rig config whose rig.camera is used without --camera")
-    p.add_argument("--frames", type=int, default=1, metavar="N", help="number of frames to save (default 1)")
+    p.add_argument("--frames", type=positive_int, default=1, metavar="N", help="number of frames to save (default 1)")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (must not exist or be empty)")
-    p.add_argument("--timeout", type=float, default=2.0, metavar="S", help="seconds to wait for each frame (default 2)")
+    p.add_argument(
+        "--timeout", type=positive_float, default=2.0, metavar="S", help="seconds to wait for each frame (default 2)"
+    )
     p.add_argument("--force", action="store_true", help="replace a non-empty --out folder")
     p.set_defaults(func=run)
 

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from app.argtypes import positive_float, positive_int
 from app.capture import CaptureLoop, pattern_order
 from app.config import Config, load_config
 from app.errors import DeviceError, InputError
@@ -228,12 +229,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--config", metavar="FILE", help="rig configuration (default: config/sim.yaml, the virtual rig)")
     p.add_argument("--scheme", choices=SCHEMES, help="pattern scheme (default: the config's scheme.name)")
     p.add_argument("--headless", action="store_true", help="no window: run the loop, print figures, save the last scan")
-    p.add_argument("--frames", type=int, metavar="N", help="stop after N camera frames (headless default 300)")
+    p.add_argument("--frames", type=positive_int, metavar="N", help="stop after N camera frames (headless default 300)")
     p.add_argument("--out", metavar="DIR", help="headless: folder for the last scan (default live-YYYYmmdd-HHMMSS)")
     p.add_argument("--record", metavar="DIR", help="record the checked frames as a dump in DIR (must not exist)")
     p.add_argument("--png-level", type=int, default=0, metavar="L", help="PNG level for recordings (0 fastest; 1..9)")
-    p.add_argument("--workers", type=int, default=1, help="decode threads (default 1)")
-    p.add_argument("--timeout", type=float, default=2.0, metavar="S", help="camera timeout in seconds (default 2)")
+    p.add_argument("--workers", type=positive_int, default=1, help="decode threads (default 1)")
+    p.add_argument(
+        "--timeout", type=positive_float, default=2.0, metavar="S", help="camera timeout in seconds (default 2)"
+    )
     p.set_defaults(func=run)
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from app.argtypes import non_negative_float, positive_float
 from app.errors import InputError
 from app.patterns import SCHEMES, make_patterns, parse_size
 
@@ -28,12 +29,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--scheme", required=True, choices=SCHEMES, help="pattern scheme")
     p.add_argument("--screen", default="0", help="screen index or name (default 0; see `slscan devices`)")
     p.add_argument(
-        "--hz", type=float, default=60.0, help="pattern rate; 0 = every refresh, paced by vsync (default 60)"
+        "--hz",
+        type=non_negative_float,
+        default=60.0,
+        help="pattern rate; 0 = every refresh, paced by vsync (default 60)",
     )
     p.add_argument(
         "--size", metavar="WxH", help="projector resolution; the screen must be exactly this (default: its size)"
     )
-    p.add_argument("--seconds", type=float, metavar="S", help="stop after S seconds (default: run until stopped)")
+    p.add_argument(
+        "--seconds", type=positive_float, metavar="S", help="stop after S seconds (default: run until stopped)"
+    )
     p.add_argument("--display", metavar="NAME", help="X display, e.g. :0 (default $DISPLAY)")
     p.add_argument("--gamma", type=float, default=1.0, help="output gamma applied to the patterns (default 1: exact)")
     p.add_argument("--brightness", type=float, default=1.0, help="output scale 0..1 (default 1: exact)")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from app.argtypes import positive_float, positive_int
 from app.errors import InputError
 
 HELP = "play a frame dump through the live pipeline and view (or --headless)"
@@ -26,10 +27,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--headless", action="store_true", help="no window: print the figures, save the last scan")
     p.add_argument("--realtime", action="store_true", help="headless: play at the recorded pace (window: always)")
     p.add_argument("--calibration", metavar="FILE", help="use this calibration instead of the dump's")
-    p.add_argument("--frames", type=int, metavar="N", help="stop after N frames (default: the whole dump)")
+    p.add_argument("--frames", type=positive_int, metavar="N", help="stop after N frames (default: the whole dump)")
     p.add_argument("--out", metavar="DIR", help="headless: folder for the last scan (default live-YYYYmmdd-HHMMSS)")
-    p.add_argument("--workers", type=int, default=1, help="decode threads (default 1)")
-    p.add_argument("--timeout", type=float, default=2.0, metavar="S", help="camera timeout in seconds (default 2)")
+    p.add_argument("--workers", type=positive_int, default=1, help="decode threads (default 1)")
+    p.add_argument(
+        "--timeout", type=positive_float, default=2.0, metavar="S", help="camera timeout in seconds (default 2)"
+    )
     p.set_defaults(func=run, record=None, png_level=0)
 
 

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from app.argtypes import non_negative_int, positive_int
 from app.errors import InputError
 from app.patterns import SCHEMES, make_patterns
 
@@ -41,9 +42,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--scheme", required=True, choices=SCHEMES, help="pattern scheme")
     r.add_argument("--out", required=True, metavar="DUMP", help="dump folder to create (must not exist or be empty)")
     r.add_argument("--camera-size", metavar="WxH", help="camera resolution (default 640x480)")
-    r.add_argument("--cycles", type=int, default=1, help="pattern cycles to render (default 1)")
+    r.add_argument("--cycles", type=positive_int, default=1, help="pattern cycles to render (default 1)")
     r.add_argument("--ideal", action="store_true", help="no noise, blur, crosstalk, ambient, gamma or shading")
-    r.add_argument("--seed", type=int, help="noise seed (default 0)")
+    r.add_argument("--seed", type=non_negative_int, help="noise seed (default 0)")
     r.add_argument("--bit-depth", type=int, choices=(8, 16), help="camera output bits (default 8)")
     r.add_argument(
         "--set",

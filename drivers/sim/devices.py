@@ -461,8 +461,8 @@ def bench_from_config(config: object) -> SimBench:
     if not isinstance(scene, str):
         raise InputError(f"{where}: key 'sim.scene' must be a preset name (see `slscan sim scenes`)")
     seed = sim.get("seed", 0)
-    if not isinstance(seed, int):
-        raise InputError(f"{where}: key 'sim.seed' must be a whole number")
+    if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
+        raise InputError(f"{where}: key 'sim.seed' must be a whole number, 0 or more")
     bench = make_bench(
         scene=scene,
         ideal=bool(sim.get("ideal", False)),

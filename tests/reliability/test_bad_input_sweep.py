@@ -331,7 +331,8 @@ def build_cases(root: Path, base: Path | None = None) -> Cases:
     # --- CLI arguments: every typed option of every subcommand given a value of the wrong type
     for name, sub in _subparsers().items():
         for act in sub._actions:
-            if act.option_strings and act.type in (int, float):
+            numeric = act.type in (int, float) or getattr(act.type, "__module__", "") == "app.argtypes"
+            if act.option_strings and numeric:
                 opt = act.option_strings[-1]
                 c.add(f"args:{name} {opt} abc", name, opt, "abc")
             if act.option_strings and act.choices and act.nargs is None:
