@@ -132,6 +132,8 @@ class _Accepted:
 ALTERNATION_RATIO = 2.0
 # A trigger count at most this far behind the last one (and past the first few) is a late delivery.
 SWAP_WINDOW = 8
+# The capture loop asks the trigger box for its count at least this often (between, it peeks at events).
+QUERY_INTERVAL_NS = 100_000_000
 
 
 @dataclass
@@ -406,6 +408,7 @@ class CaptureLoop:
         self._deadline = 0
         self._started = False
         self._count = 0  # last trigger count read
+        self._last_query_ns = 0  # when the trigger box was last asked for its count (not peeked)
 
     @property
     def stats(self) -> CaptureStats:
@@ -489,9 +492,18 @@ class CaptureLoop:
     def _read_counter(self) -> int:
         from drivers.trigger.errors import TriggerResetError
 
+        # A trigger that follows its own event lines answers without a serial round trip; the box is
+        # still asked itself every QUERY_INTERVAL_NS, which is what notices a box gone silent or mad.
+        peek = getattr(self.trigger, "peek_counter", None)
+        now = time.monotonic_ns()
+        if peek is not None and now - self._last_query_ns < QUERY_INTERVAL_NS:
+            read = peek
+        else:
+            read, self._last_query_ns = self.trigger.counter, now  # type: ignore[union-attr]
         try:
-            return int(self.trigger.counter())  # type: ignore[union-attr]
+            return int(read())
         except TriggerResetError:
+            self._last_query_ns = 0  # the peeked count is stale after a reset: ask the box next time
             return -1
 
     def _show_triggered(self) -> None:
