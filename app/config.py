@@ -9,9 +9,8 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import yaml
-
 from app.errors import InputError
+from app.yamlfile import load_yaml_mapping
 
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "config"
 DEFAULT_CONFIG = CONFIG_DIR / "sim.yaml"
@@ -51,10 +50,4 @@ def load_config(path: str | os.PathLike | None = None) -> Config:
     path = Path(path) if path is not None else DEFAULT_CONFIG
     if not path.is_file():
         raise InputError(f"{path}: config file not found")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: not valid YAML ({str(exc).splitlines()[0]})") from None
-    if not isinstance(data, dict):
-        raise InputError(f"{path}: expected a mapping at the top level")
-    return Config(path, data)
+    return Config(path, load_yaml_mapping(path))

@@ -11,6 +11,7 @@ import yaml
 from app.errors import InputError
 from app.imageio import read_rgb, write_rgb
 from app.patterns import CHANNEL_INDEX, PALETTE, SCHEMES, PatternSet, window_table
+from app.yamlfile import load_yaml_mapping
 
 FILENAME = "patterns.yaml"
 
@@ -35,12 +36,7 @@ def read_patterns_meta(folder: str | os.PathLike) -> dict:
     path = Path(folder) / FILENAME
     if not path.is_file():
         raise InputError(f"{path}: not found (a pattern export needs patterns.yaml)")
-    try:
-        meta = yaml.safe_load(path.read_text())
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: not valid YAML ({str(exc).splitlines()[0]})") from None
-    if not isinstance(meta, dict):
-        raise InputError(f"{path}: expected a mapping at the top level")
+    meta = load_yaml_mapping(path)
     for key in ("scheme", "size", "images"):
         if key not in meta:
             raise InputError(f"{path}: missing field '{key}'")

@@ -20,6 +20,7 @@ import numpy as np
 import yaml
 
 from app.errors import InputError
+from app.yamlfile import load_yaml
 
 TYPES = ("checkerboard", "charuco")
 FILENAME = "board.yaml"
@@ -135,11 +136,7 @@ def load_board(path: str | os.PathLike) -> Board:
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: board description not found")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: not valid YAML ({str(exc).splitlines()[0]})") from None
-    return board_from_dict(data, str(path))
+    return board_from_dict(load_yaml(path), str(path))
 
 
 # ----------------------------------------------------------------------------- detection

@@ -29,6 +29,7 @@ import numpy as np
 import yaml
 
 from app.errors import InputError
+from app.yamlfile import load_yaml_mapping
 from drivers.sim.optics import Geometry
 from drivers.sim.shapes import Box, Cylinder, Material, Rectangle, Relief, Shape, Sphere
 from drivers.sim.textures import Bands, Charuco, Checkerboard, Patches, Stickers, Texture, Uniform
@@ -103,13 +104,7 @@ def preset_path(name: str, folder: Path = SCENES_DIR) -> Path:
 
 def load_scene(name_or_path: str | os.PathLike, folder: Path = SCENES_DIR) -> Scene:
     path = preset_path(str(name_or_path), folder)
-    try:
-        data = yaml.safe_load(path.read_text())
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise SceneError(f"{path}: not valid YAML ({str(exc).splitlines()[0]})") from None
-    if not isinstance(data, dict):
-        raise SceneError(f"{path}: expected a mapping at the top level")
-    return parse_scene(data, path)
+    return parse_scene(load_yaml_mapping(path, SceneError), path)
 
 
 def parse_scene(data: dict, path: Path) -> Scene:
