@@ -435,15 +435,20 @@ def _label_row(
     tl[nr] = 0
     for j in range(nr - 1, -1, -1):
         tl[j] = tl[j + 1] + 1 if link[j] else 0
-    for j in range(nr):
+    # the window key sum_t rc[j + t] * A**t, rolled from j + 1 down to j (one multiply-add per run)
+    top = 1
+    for _t in range(k - 1):
+        top *= A
+    key = 0
+    for t in range(k - 1, -1, -1):
+        key = key * A + rc[nr - k + t]
+    for j in range(nr - 1, -1, -1):
         pos[j] = -1
-        if j + k <= nr and tl[j] >= k - 1:
-            key = 0
-            mul = 1
-            for t in range(k):
-                key += rc[j + t] * mul
-                mul *= A
-            pos[j] = table[key]
+        if j + k <= nr:
+            if j + k < nr:
+                key = (key - rc[j + k] * top) * A + rc[j]
+            if tl[j] >= k - 1:
+                pos[j] = table[key]
     for i in range(nr):
         lab[i] = -1
     for j in range(nr):
@@ -530,21 +535,20 @@ def _label_row(
         npx = xb - xa + 1
         seg = 0
         slope = (nv[1] - nv[0]) / (nx[1] - nx[0])
+        span = period * sw
+        inv_span = 1.0 / span  # a multiply, not a division per pixel (exact for the usual power-of-2 span)
+        if use_range:
+            for q in range(n_copies):
+                votes[q] = 0
         for xx in range(xa, xb + 1):
             if seg + 2 < nn and xx > nx[seg + 1]:
                 while seg + 2 < nn and xx > nx[seg + 1]:
                     seg += 1
                 slope = (nv[seg + 1] - nv[seg]) / (nx[seg + 1] - nx[seg])
-            colrow[xx] = nv[seg] + (xx - nx[seg]) * slope
-        shift = 0.0
-        if use_range:
-            # each pixel votes for the copy that puts its column inside its depth-range interval
-            span = period * sw
-            inv_span = 1.0 / span  # a multiply, not a division per pixel (exact for the usual power-of-2 span)
-            for q in range(n_copies):
-                votes[q] = 0
-            for xx in range(xa, xb + 1):
-                v = colrow[xx]
+            v = nv[seg] + (xx - nx[seg]) * slope
+            colrow[xx] = v
+            if use_range:
+                # each pixel votes for the copy that puts its column inside its depth-range interval
                 q = int(np.ceil((lo[y, xx] - v) * inv_span))
                 if q < 0:
                     q = 0
@@ -554,6 +558,8 @@ def _label_row(
                         break
                     votes[q] += 1
                     q += 1
+        shift = 0.0
+        if use_range:
             best_q = -1
             best_n = 0
             second_n = 0
