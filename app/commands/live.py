@@ -38,7 +38,7 @@ examples:
 
 keys in the window: space = snapshot (depth TIFF, PLY, PNGs), r = start/stop recording,
 m = switch scheme, q / Esc = quit.
-Without a display, `slscan live` says so; use --headless.
+Without a display, `slscan live` says so and runs headless.
 """
 
 DRIVER_MODULES = {
@@ -258,12 +258,13 @@ def open_recorder(session: Session, folder: str | os.PathLike, png_level: int = 
 def run(args: argparse.Namespace) -> int:
     if args.frames is not None and args.frames < 1:
         raise InputError(f"--frames {args.frames}: must be at least 1")
+    if not args.headless and not os.environ.get("DISPLAY"):
+        # The session itself needs no screen: run it headless rather than refuse (say so on stderr).
+        print(
+            "slscan live: no display for the operator window (DISPLAY is not set): running --headless", file=sys.stderr
+        )
+        args.headless = True
     if not args.headless:
-        if not os.environ.get("DISPLAY"):
-            raise DeviceError(
-                "no display for the operator window (DISPLAY is not set): "
-                "run `slscan live --headless --frames 600` instead"
-            )
         from app.view import run_view
 
         session = build_session(args.config, scheme=args.scheme)
