@@ -85,7 +85,7 @@ def test_timeout_and_bad_arguments(tmp_path, capsys):
     assert main(["grab", "--camera", spec, "--frames", "2", "--timeout", "0.2", "--out", str(tmp_path / "t")]) == 2
     assert "no frame within the timeout" in capsys.readouterr().err
     assert main(["grab", "--camera", "sim", "--frames", "0", "--out", str(tmp_path / "z")]) == 2
-    assert "--frames 0 must be at least 1" in capsys.readouterr().err
+    assert "argument --frames: '0' must be greater than 0" in capsys.readouterr().err
 
 
 @pytest.mark.slow  # the virtual rig's set-up takes seconds (another area's cost, not the grab's)
