@@ -455,14 +455,13 @@ def _label_row(
         p = pos[j]
         if p < 0:
             continue
-        conf = False
-        if j + 1 < nr and pos[j + 1] >= 0 and pos[j + 1] == _wrap(p + 1, period):
-            conf = True
-        if j > 0 and pos[j - 1] >= 0 and p == _wrap(pos[j - 1] + 1, period):
-            conf = True
+        # a window that continues the previous one confirms it too, and that one already gave runs
+        # j..j+k-2 these same labels (or marked them -2): only the last run is new
+        follows = j > 0 and pos[j - 1] >= 0 and p == _wrap(pos[j - 1] + 1, period)
+        conf = follows or (j + 1 < nr and pos[j + 1] >= 0 and pos[j + 1] == _wrap(p + 1, period))
         if not conf:
             continue
-        for t in range(k):
+        for t in range(k - 1 if follows else 0, k):
             i = j + t
             lv = _wrap(p + t, period)
             if lab[i] == -1:
