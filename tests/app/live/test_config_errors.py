@@ -57,13 +57,6 @@ def test_missing_config_file_and_cli_exit_status(tmp_path, run_cli):
     assert "Traceback" not in r.stderr
 
 
-def test_live_without_display_says_so_in_one_line(monkeypatch, capsys):
-    monkeypatch.delenv("DISPLAY", raising=False)
-    assert main(["live"]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "--headless" in err
-
-
 def test_dump_refuses_to_overwrite(tmp_path, capsys):
     (tmp_path / "rec").mkdir()
     (tmp_path / "rec" / "keep.txt").write_text("mine")
