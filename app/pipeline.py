@@ -15,6 +15,7 @@ OpenCV, both release the GIL; `slscan bench --live` measures whether that keeps 
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from collections import deque
@@ -30,6 +31,11 @@ from app.patterns import PatternSet
 from app.recorder import Recorder, lower_thread_priority
 from calibration.model import Calibration
 from drivers.base import Frame
+
+# Decode threads by default: the compiled kernels release the GIL, so two threads use two cores
+# (measured on the virtual rig at 640x480: 2 threads gave 40.7 depth maps/s with capture at 59.6 frames/s).
+DECODE_WORKERS = max(1, min(2, os.cpu_count() or 1))
+WORKERS_HELP = f"decode threads (default {DECODE_WORKERS}: up to 2, as many as the cores)"
 
 # ------------------------------------------------------------------------------------ decode stage
 

@@ -19,6 +19,7 @@ import time
 import numpy as np
 
 from app.argtypes import positive_int
+from app.pipeline import DECODE_WORKERS, WORKERS_HELP
 
 FLAG = "--live"
 KEY = "live"
@@ -44,7 +45,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="M",
         help="frames with injected faults (live)",
     )
-    parser.add_argument("--live-workers", type=positive_int, default=1, metavar="W", help="decode threads (live)")
+    parser.add_argument("--live-workers", type=positive_int, default=DECODE_WORKERS, metavar="W", help=WORKERS_HELP)
 
 
 def _live_row(frames: int, workers: int) -> dict:

@@ -23,7 +23,7 @@ from app.capture import CaptureLoop, pattern_order
 from app.config import Config, load_config
 from app.errors import DeviceError, InputError
 from app.patterns import SCHEMES, PatternSet, make_patterns
-from app.pipeline import LivePipeline, Processor, Result, status_line
+from app.pipeline import DECODE_WORKERS, WORKERS_HELP, LivePipeline, Processor, Result, status_line
 from calibration.model import Calibration
 from drivers.base import CAMERAS, PROJECTORS, TRIGGERS
 
@@ -233,7 +233,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", metavar="DIR", help="headless: folder for the last scan (default live-YYYYmmdd-HHMMSS)")
     p.add_argument("--record", metavar="DIR", help="record the checked frames as a dump in DIR (must not exist)")
     p.add_argument("--png-level", type=int, default=0, metavar="L", help="PNG level for recordings (0 fastest; 1..9)")
-    p.add_argument("--workers", type=positive_int, default=1, help="decode threads (default 1)")
+    p.add_argument("--workers", type=positive_int, default=DECODE_WORKERS, help=WORKERS_HELP)
     p.add_argument(
         "--timeout", type=positive_float, default=2.0, metavar="S", help="camera timeout in seconds (default 2)"
     )

@@ -6,6 +6,7 @@ import argparse
 
 from app.argtypes import positive_float, positive_int
 from app.errors import InputError
+from app.pipeline import DECODE_WORKERS, WORKERS_HELP
 
 HELP = "play a frame dump through the live pipeline and view (or --headless)"
 
@@ -29,7 +30,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--calibration", metavar="FILE", help="use this calibration instead of the dump's")
     p.add_argument("--frames", type=positive_int, metavar="N", help="stop after N frames (default: the whole dump)")
     p.add_argument("--out", metavar="DIR", help="headless: folder for the last scan (default live-YYYYmmdd-HHMMSS)")
-    p.add_argument("--workers", type=positive_int, default=1, help="decode threads (default 1)")
+    p.add_argument("--workers", type=positive_int, default=DECODE_WORKERS, help=WORKERS_HELP)
     p.add_argument(
         "--timeout", type=positive_float, default=2.0, metavar="S", help="camera timeout in seconds (default 2)"
     )
