@@ -3,11 +3,9 @@
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 import sys
 import textwrap
-import time
 
 import pytest
 
@@ -51,43 +49,13 @@ SCRIPT = textwrap.dedent(
 )
 
 
-def _xvfb():
-    read_fd, write_fd = os.pipe()
-    proc = subprocess.Popen(
-        ["Xvfb", "-displayfd", str(write_fd), "-screen", "0", "1400x700x24", "-nolisten", "tcp"],
-        pass_fds=(write_fd,),
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    os.close(write_fd)
-    number = b""
-    deadline = time.monotonic() + 20
-    with os.fdopen(read_fd, "rb") as pipe:
-        while not number.endswith(b"\n") and time.monotonic() < deadline:
-            chunk = pipe.read(1)
-            if not chunk:
-                break
-            number += chunk
-    if not number.strip().isdigit():
-        proc.kill()
-        pytest.skip("Xvfb did not start")
-    return proc, f":{int(number)}"
-
-
 @pytest.mark.slow
 @pytest.mark.xserver
-def test_wizard_window_guides_to_a_saved_calibration(tmp_path):
-    if shutil.which("Xvfb") is None:
-        pytest.skip("Xvfb is not installed (.ci/run installs it)")
-    proc, display = _xvfb()
-    try:
-        env = {**os.environ, "DISPLAY": display}
-        run = subprocess.run(
-            [sys.executable, "-c", SCRIPT, str(tmp_path)], capture_output=True, text=True, env=env, timeout=600
-        )
-    finally:
-        proc.terminate()
-        proc.wait(timeout=10)
+def test_wizard_window_guides_to_a_saved_calibration(tmp_path, xserver):
+    env = {**os.environ, "DISPLAY": xserver}
+    run = subprocess.run(
+        [sys.executable, "-c", SCRIPT, str(tmp_path)], capture_output=True, text=True, env=env, timeout=600
+    )
     assert run.returncode == 0, run.stderr[-2000:]
     out = run.stdout
     assert "EARLY not saved" in out

@@ -4,7 +4,6 @@ space writes a snapshot, r starts and stops a recording, m switches scheme, q qu
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 import sys
 import textwrap
@@ -56,27 +55,8 @@ SCRIPT = textwrap.dedent(
 )
 
 
-@pytest.fixture
-def xvfb():
-    if shutil.which("Xvfb") is None:
-        pytest.skip("Xvfb is not installed (.ci/run installs it)")
-    r, w = os.pipe()
-    proc = subprocess.Popen(
-        ["Xvfb", "-displayfd", str(w), "-screen", "0", "1280x800x24", "-nolisten", "tcp"], pass_fds=(w,)
-    )
-    os.close(w)
-    with os.fdopen(r) as fh:
-        number = fh.readline().strip()
-    if not number:
-        proc.kill()
-        pytest.fail("Xvfb did not start")
-    yield f":{number}"
-    proc.terminate()
-    proc.wait(10)
-
-
-def test_view_shows_results_and_its_keys_work(tmp_path, xvfb):
-    env = {**os.environ, "DISPLAY": xvfb}
+def test_view_shows_results_and_its_keys_work(tmp_path, xserver):
+    env = {**os.environ, "DISPLAY": xserver}
     r = subprocess.run(
         [sys.executable, "-c", SCRIPT], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=280
     )

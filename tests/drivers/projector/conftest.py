@@ -1,6 +1,5 @@
-"""A real X server for the projector tests: Xvfb on a free display number, depth 24.
-
-Xvfb picks the free display number itself (-displayfd) so parallel sessions never collide.
+"""X servers for the projector tests: the session's Xvfb (`xserver`, tests/conftest.py) and a
+two-monitor Xorg (dummy driver), both started by `start_x_server` (tests/conftest.py).
 Pixels are read back from the X server (python-xlib GetImage on the root window), not from
 OpenGL: what the server shows is what a projector would get.
 """
@@ -10,61 +9,12 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
-import time
 from collections.abc import Iterator
 
 import numpy as np
 import pytest
 
-XVFB_SIZE = (1024, 768)
-
-
-def _start_server(argv: list[str]) -> tuple[subprocess.Popen, str]:
-    """Start an X server with `-displayfd`; returns it and its display name once it accepts clients."""
-    read_fd, write_fd = os.pipe()
-    proc = subprocess.Popen(
-        [argv[0], "-displayfd", str(write_fd), *argv[1:]],
-        pass_fds=(write_fd,),
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-    )
-    os.close(write_fd)
-    number = b""
-    deadline = time.monotonic() + 20
-    with os.fdopen(read_fd, "rb") as pipe:
-        # Xvfb writes "N\n" once it accepts connections, or closes the pipe if it dies.
-        while not number.endswith(b"\n") and time.monotonic() < deadline:
-            chunk = pipe.read(1)
-            if not chunk:
-                break
-            number += chunk
-    if not number.strip().isdigit():
-        proc.kill()
-        err = proc.communicate(timeout=5)[1].decode(errors="replace")
-        raise RuntimeError(f"{argv[0]} did not start: {err.strip()[-500:]}")
-    return proc, f":{int(number)}"
-
-
-def _stop_server(proc: subprocess.Popen) -> None:
-    proc.terminate()
-    try:
-        proc.wait(timeout=10)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait()
-
-
-@pytest.fixture(scope="session")
-def xserver() -> Iterator[str]:
-    """The display name (":N") of a session-wide Xvfb, stopped at the end of the session."""
-    if shutil.which("Xvfb") is None:
-        pytest.skip("Xvfb is not installed (.ci/run installs it: apt-get install xvfb)")
-    w, h = XVFB_SIZE
-    proc, name = _start_server(["Xvfb", "-screen", "0", f"{w}x{h}x24", "-nolisten", "tcp", "-nocursor"])
-    try:
-        yield name
-    finally:
-        _stop_server(proc)
+XVFB_SIZE = (1024, 768)  # the size of the session's Xvfb (tests/conftest.py)
 
 
 @pytest.fixture
@@ -131,24 +81,21 @@ DUMMY_DRIVER = "/usr/lib/xorg/modules/drivers/dummy_drv.so"
 
 
 @pytest.fixture(scope="session")
-def two_screen_xserver(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+def two_screen_xserver(tmp_path_factory: pytest.TempPathFactory, start_x_server) -> str:
     """The display name of an Xorg (dummy driver) with two monitors side by side."""
     if shutil.which("Xorg") is None or not os.path.exists(DUMMY_DRIVER) or shutil.which("xrandr") is None:
         pytest.skip("Xorg with the dummy driver is not installed (.ci/run: xserver-xorg-video-dummy)")
     folder = tmp_path_factory.mktemp("xorg-dummy")
     (folder / "xorg.conf").write_text(DUMMY_CONF)
     argv = ["Xorg", "-config", str(folder / "xorg.conf"), "-logfile", str(folder / "xorg.log")]
-    proc, name = _start_server([*argv, "-noreset", "-nolisten", "tcp", "-nocursor"])
-    try:
-        env = {**os.environ, "DISPLAY": name}
-        for cmd in (
-            ["xrandr", "--addmode", "DUMMY1", "800x600"],
-            ["xrandr", "--output", "DUMMY1", "--mode", "800x600", "--right-of", "DUMMY0"],
-        ):
-            subprocess.run(cmd, env=env, check=True, capture_output=True, timeout=20)
-        yield name
-    finally:
-        _stop_server(proc)
+    name = start_x_server([*argv, "-noreset", "-nolisten", "tcp", "-nocursor"])
+    env = {**os.environ, "DISPLAY": name}
+    for cmd in (
+        ["xrandr", "--addmode", "DUMMY1", "800x600"],
+        ["xrandr", "--output", "DUMMY1", "--mode", "800x600", "--right-of", "DUMMY0"],
+    ):
+        subprocess.run(cmd, env=env, check=True, capture_output=True, timeout=20)
+    return name
 
 
 @pytest.fixture(scope="session")
