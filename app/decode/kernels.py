@@ -630,21 +630,7 @@ def label_rows(
     m = feat.shape[2]
     A = link_ok.shape[0]
     n = (m + 1) * (2 * W + 8)
-    rs = np.empty(n, np.int64)
-    re = np.empty(n, np.int64)
-    rc = np.empty(n, np.int64)
-    link = np.zeros(n, np.bool_)
-    edge = np.zeros(n, np.float64)
-    left = np.zeros(n, np.float64)
-    right = np.zeros(n, np.float64)
-    tl = np.zeros(n + 1, np.int64)
-    pos = np.empty(n, np.int64)
-    lab = np.empty(n, np.int64)
-    nx = np.empty(n, np.float64)
-    nv = np.empty(n, np.float64)
-    sm = np.empty(n, np.float64)
-    votes = np.zeros(max(n_copies, 1), np.int64)
-    colrow = np.empty(W, np.float64)
+    rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, votes, colrow = _row_scratch(n, W, n_copies)
     ex = np.empty((m, n), np.float64)
     es = np.empty((m, n), np.int64)
     et = np.empty((m, n), np.int64)
@@ -922,16 +908,25 @@ def twoshot_rows(
     edges_mode,
     min_frac,
     smooth,
+    tol,
+    min_support,
+    do_runs,
     col_e,
     chain_e,
     col_r,
     chain_r,
+    conf,
 ):
     """The two-shot decoder's "both" segmentation fused row by row: classify a row into one-row buffers,
-    then label it from its zero crossings (col_e/chain_e) and from its pixel runs (col_r/chain_r).
+    label it from its zero crossings (col_e/chain_e) and from its pixel runs (col_r/chain_r), count the
+    vertical agreement with the row above, and finish the row above (vertical check + merge).
 
-    Same arithmetic as twoshot_classify + label_rows twice, without full-image intermediates.
-    Returns the chain counts (events, runs).
+    Same result as twoshot_classify, label_rows twice, vertical_check on both and merge_maps, without
+    full-image intermediates or extra passes: chains are row segments, so a chain of row y - 1 has all
+    its vertical votes once row y is labelled. The merged map is written into col_e/chain_e and conf;
+    a value filled from the runs map gets chain id (runs chain + cap). tol <= 0 skips the vertical check.
+    do_runs=False: the zero-crossing stripes alone ("events").
+    Returns (events chains, runs chains, events dropped, runs dropped, filled, clashes).
     """
     H, W = col_e.shape
     m = unmix.shape[0]
@@ -942,6 +937,54 @@ def twoshot_rows(
     feat = np.empty((1, W, m), np.float32)
     noise = np.empty((1, W, m), np.float32)
     n = (m + 1) * (2 * W + 8)
+    rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, votes, colrow = _row_scratch(n, W, n_copies)
+    ex = np.empty((m, n), np.float64)
+    es = np.empty((m, n), np.int64)
+    et = np.empty((m, n), np.int64)
+    cnt = np.zeros(m, np.int64)
+    cap = H * (n // k + 2)  # at most this many chains: each holds k runs of a row
+    agree_e = np.zeros(cap, np.int32)
+    dis_e = np.zeros(cap, np.int32)
+    npx_e = np.zeros(cap, np.int32)
+    agree_r = np.zeros(cap, np.int32)
+    dis_r = np.zeros(cap, np.int32)
+    npx_r = np.zeros(cap, np.int32)
+    first_e = np.zeros(H + 1, np.int64)  # chains of row y are first_e[y] .. first_e[y + 1] - 1
+    first_r = np.zeros(H + 1, np.int64)
+    check = tol > 0
+    n_e = 0
+    n_r = 0
+    stats = np.zeros(4, np.int64)  # dropped events, dropped runs, filled, clashes
+    for y in range(H):
+        _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, code, feat, noise)
+        nr = _event_runs(feat, noise, 0, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right)
+        n_e = _label_row(
+            y, nr, rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, colrow, table, A, k, period, sw,
+            n_copies, proj_w, lo, hi, use_range, edges_mode, min_frac, smooth, sm, votes, col_e, chain_e, n_e,
+        )  # fmt: skip
+        if do_runs:
+            nr = _pixel_runs(code, feat, wts, link_ok, 0, gap_max, rs, re, rc, link, edge, left, right)
+            n_r = _label_row(
+                y, nr, rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, colrow, table, A, k, period, sw,
+                n_copies, proj_w, lo, hi, use_range, edges_mode, min_frac, smooth, sm, votes, col_r, chain_r, n_r,
+            )  # fmt: skip
+        first_e[y + 1] = n_e
+        first_r[y + 1] = n_r
+        if check:
+            _row_votes(col_e, chain_e, y, tol, agree_e, dis_e, npx_e)
+            _row_votes(col_r, chain_r, y, tol, agree_r, dis_r, npx_r)
+        if y > 0:
+            _finish_row(y - 1, col_e, chain_e, col_r, chain_r, conf, first_e, first_r, agree_e, dis_e, npx_e,
+                        agree_r, dis_r, npx_r, check, min_support, cap, stats)  # fmt: skip
+    if H > 0:
+        _finish_row(H - 1, col_e, chain_e, col_r, chain_r, conf, first_e, first_r, agree_e, dis_e, npx_e,
+                    agree_r, dis_r, npx_r, check, min_support, cap, stats)  # fmt: skip
+    return n_e, n_r, stats[0], stats[1], stats[2], stats[3]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _row_scratch(n, W, n_copies):
+    """The per-row buffers of the run segmentation and _label_row, for at most n runs in a row of W pixels."""
     rs = np.empty(n, np.int64)
     re = np.empty(n, np.int64)
     rc = np.empty(n, np.int64)
@@ -957,144 +1000,68 @@ def twoshot_rows(
     sm = np.empty(n, np.float64)
     votes = np.zeros(max(n_copies, 1), np.int64)
     colrow = np.empty(W, np.float64)
-    ex = np.empty((m, n), np.float64)
-    es = np.empty((m, n), np.int64)
-    et = np.empty((m, n), np.int64)
-    cnt = np.zeros(m, np.int64)
-    n_e = 0
-    n_r = 0
-    for y in range(H):
-        _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, code, feat, noise)
-        for ev in range(2):
-            oc = col_e if ev == 0 else col_r
-            och = chain_e if ev == 0 else chain_r
-            n0 = n_e if ev == 0 else n_r
-            if ev == 0:
-                nr = _event_runs(feat, noise, 0, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right)
-            else:
-                nr = _pixel_runs(code, feat, wts, link_ok, 0, gap_max, rs, re, rc, link, edge, left, right)
-            nc = _label_row(
-                y,
-                nr,
-                rs,
-                re,
-                rc,
-                link,
-                edge,
-                left,
-                right,
-                tl,
-                pos,
-                lab,
-                nx,
-                nv,
-                colrow,
-                table,
-                A,
-                k,
-                period,
-                sw,
-                n_copies,
-                proj_w,
-                lo,
-                hi,
-                use_range,
-                edges_mode,
-                min_frac,
-                smooth,
-                sm,
-                votes,
-                oc,
-                och,
-                n0,
-            )
-            if ev == 0:
-                n_e = nc
-            else:
-                n_r = nc
-    return n_e, n_r
+    return rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, votes, colrow
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _row_votes(col, chain, y, tol, agree, disagree, npx):
+    """Count row y's pixels per chain, and its agreement with row y - 1 for the chains of both rows."""
+    W = col.shape[1]
+    for x in range(W):
+        c = chain[y, x]
+        if c < 0:
+            continue
+        npx[c] += 1
+        if y == 0:
+            continue
+        cu = chain[y - 1, x]
+        if cu < 0:
+            continue
+        if abs(col[y - 1, x] - col[y, x]) <= tol:
+            agree[c] += 1
+            agree[cu] += 1
+        else:
+            disagree[c] += 1
+            disagree[cu] += 1
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _vertical_votes(col, chain, tol, agree, disagree, npx):
-    """vertical_check's counts: per chain, labelled pixels and agreeing / disagreeing vertical neighbours."""
-    H, W = col.shape
-    for y in range(H):
-        for x in range(W):
-            c = chain[y, x]
-            if c < 0:
-                continue
-            npx[c] += 1
-            v = col[y, x]
-            if y > 0 and chain[y - 1, x] >= 0:
-                if abs(col[y - 1, x] - v) <= tol:
-                    agree[c] += 1
-                else:
-                    disagree[c] += 1
-            if y + 1 < H and chain[y + 1, x] >= 0:
-                if abs(col[y + 1, x] - v) <= tol:
-                    agree[c] += 1
-                else:
-                    disagree[c] += 1
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _chain_drops(agree, disagree, npx, n_chains, min_support):
-    drop = np.zeros(max(n_chains, 1), np.bool_)
-    dropped = 0
-    for c in range(n_chains):
-        if disagree[c] >= agree[c] or agree[c] < min_support * npx[c]:
-            drop[c] = True
-            dropped += 1
-    return drop, dropped
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def vertical_merge(col_e, chain_e, n_e, col_r, chain_r, n_r, tol, min_support, conf):
-    """vertical_check on both maps, then merge_columns (b = runs into a = events), in two passes.
-
-    Writes the merged result into col_e/chain_e and conf (1 where a value, else 0). tol <= 0 skips
-    the vertical check. Returns (dropped events chains, dropped runs chains, filled, clashes).
-    """
-    H, W = col_e.shape
-    ne = max(n_e, 1)
-    nr = max(n_r, 1)
-    agree_e = np.zeros(ne, np.int32)
-    dis_e = np.zeros(ne, np.int32)
-    npx_e = np.zeros(ne, np.int32)
-    agree_r = np.zeros(nr, np.int32)
-    dis_r = np.zeros(nr, np.int32)
-    npx_r = np.zeros(nr, np.int32)
-    check = tol > 0
+def _finish_row(
+    y, col_e, chain_e, col_r, chain_r, conf, first_e, first_r, agree_e, dis_e, npx_e, agree_r, dis_r, npx_r, check,
+    min_support, cap, stats,
+):  # fmt: skip
+    """Row y has all its vertical votes: drop its unconfirmed chains, then merge runs into events (see merge_maps)."""
+    W = col_e.shape[1]
     if check:
-        _vertical_votes(col_e, chain_e, tol, agree_e, dis_e, npx_e)
-        _vertical_votes(col_r, chain_r, tol, agree_r, dis_r, npx_r)
-    drop_e, dropped_e = _chain_drops(agree_e, dis_e, npx_e, n_e if check else 0, min_support)
-    drop_r, dropped_r = _chain_drops(agree_r, dis_r, npx_r, n_r if check else 0, min_support)
-    filled = 0
-    clashes = 0
-    for y in range(H):
-        for x in range(W):
-            ce = chain_e[y, x]
-            cr = chain_r[y, x]
-            ok_e = ce >= 0 and not drop_e[ce]
-            ok_r = cr >= 0 and not drop_r[cr]
-            if ok_e:
-                if ok_r and abs(col_e[y, x] - col_r[y, x]) > 0.5:
-                    col_e[y, x] = np.nan
-                    chain_e[y, x] = -1
-                    conf[y, x] = 0.0
-                    clashes += 1
-                else:
-                    conf[y, x] = 1.0
-            elif ok_r:
-                col_e[y, x] = col_r[y, x]
-                chain_e[y, x] = cr + n_e
-                conf[y, x] = 1.0
-                filled += 1
-            else:
-                if ce >= 0:
-                    col_e[y, x] = np.nan
-                    chain_e[y, x] = -1
+        # a chain is dropped by marking its pixel count negative (read below)
+        for c in range(first_e[y], first_e[y + 1]):
+            if dis_e[c] >= agree_e[c] or agree_e[c] < min_support * npx_e[c]:
+                npx_e[c] = -1
+                stats[0] += 1
+        for c in range(first_r[y], first_r[y + 1]):
+            if dis_r[c] >= agree_r[c] or agree_r[c] < min_support * npx_r[c]:
+                npx_r[c] = -1
+                stats[1] += 1
+    for x in range(W):
+        ce = chain_e[y, x]
+        cr = chain_r[y, x]
+        ok_e = ce >= 0 and npx_e[ce] >= 0
+        ok_r = cr >= 0 and npx_r[cr] >= 0
+        if ok_e:
+            if ok_r and abs(col_e[y, x] - col_r[y, x]) > 0.5:
+                col_e[y, x] = np.nan
+                chain_e[y, x] = -1
                 conf[y, x] = 0.0
-    return dropped_e, dropped_r, filled, clashes
+                stats[3] += 1
+            else:
+                conf[y, x] = 1.0
+        elif ok_r:
+            col_e[y, x] = col_r[y, x]
+            chain_e[y, x] = cr + cap
+            conf[y, x] = 1.0
+            stats[2] += 1
+        else:
+            if ce >= 0:
+                col_e[y, x] = np.nan
+                chain_e[y, x] = -1
+            conf[y, x] = 0.0

@@ -131,15 +131,14 @@ class TwoShotDecoder:
         seg = p.segmentation
         if seg not in ("both", "events", "runs"):
             raise ValueError(f"segmentation {seg!r} is not both, events or runs")
-        if seg == "both":
-            return self._decode_both(frame1, frame2)
-        code, feat, thr = self.classify(frame1, frame2, want_code=seg != "events")
-        lp = dataclasses.replace(p.label, events=seg == "events")
-        return label(code, feat, self.spec, lp, self.column_range, thr)
+        if seg != "runs":
+            return self._decode_fused(frame1, frame2)
+        code, feat, thr = self.classify(frame1, frame2)
+        return label(code, feat, self.spec, dataclasses.replace(p.label, events=False), self.column_range, thr)
 
-    def _decode_both(self, frame1: np.ndarray, frame2: np.ndarray) -> StripeMap:
-        """The default path, fused row by row (no full-image codes or differences): the same result as
-        label(events) and label(runs) merged by merge_maps."""
+    def _decode_fused(self, frame1: np.ndarray, frame2: np.ndarray) -> StripeMap:
+        """The "both" and "events" paths, fused row by row (no full-image codes or differences): the same
+        result as label(events), and for "both" label(runs) merged into it by merge_maps."""
         self._check_pair(frame1, frame2)
         H, W = frame1.shape[:2]
         p, lp, spec = self.params, self.params.label, self.spec
@@ -150,7 +149,8 @@ class TwoShotDecoder:
         chain_e = np.full((H, W), -1, np.int32)
         col_r = np.full((H, W), np.nan, np.float32)
         chain_r = np.full((H, W), -1, np.int32)
-        n_e, n_r = kernels.twoshot_rows(
+        conf = np.empty((H, W), np.float32)
+        n_e, n_r, drop_e, drop_r, filled, clashes = kernels.twoshot_rows(
             frame1,
             frame2,
             lin,
@@ -175,14 +175,14 @@ class TwoShotDecoder:
             lp.edges,
             lp.min_frac,
             lp.smooth,
+            lp.vertical_tol,
+            lp.min_support,
+            p.segmentation == "both",
             col_e,
             chain_e,
             col_r,
             chain_r,
-        )
-        conf = np.empty((H, W), np.float32)
-        drop_e, drop_r, filled, clashes = kernels.vertical_merge(
-            col_e, chain_e, n_e, col_r, chain_r, n_r, lp.vertical_tol, lp.min_support, conf
+            conf,
         )
         return StripeMap(
             col_e,
