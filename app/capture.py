@@ -381,9 +381,11 @@ class CaptureLoop:
         self.camera, self.projector, self.trigger = camera, projector, trigger
         # With a trigger, flips follow the trigger counter on their own thread, so a slow grab or
         # decode never leaves a tick without its pattern. Not for a projector whose window belongs
-        # to the thread that opened it (pyglet: it has request_stop); there the loop shows inline.
+        # to the thread that opened it (pyglet: it has request_stop); there the loop shows inline,
+        # unless it is wrapped to be callable from any thread (app/owner_thread.py: any_thread).
         if projector_thread is None:
-            projector_thread = projector is not None and trigger is not None and not hasattr(projector, "request_stop")
+            thread_bound = hasattr(projector, "request_stop") and not getattr(projector, "any_thread", False)
+            projector_thread = projector is not None and trigger is not None and not thread_bound
         self._use_thread = bool(projector_thread) and projector is not None and trigger is not None
         self._proj_stop = threading.Event()
         self._proj_thread: threading.Thread | None = None

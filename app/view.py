@@ -1,12 +1,25 @@
-"""The operator view: camera image, stripe pseudo-colour and colourised depth, a status line, keys.
+"""The operator view: camera image, stripe pseudo-colour, colourised depth and a 3D point view, a status line, keys.
 
 pyglet is imported only when the window opens (`run_view`), so headless runs and tests never need
-a display. The window runs on the main thread and redraws at up to 60 Hz from the pipeline's
-newest result (older ones are counted as stale by the pipeline, never queued here).
+a display. Four panels, 2 x 2: camera | stripes / depth | 3D points. The window redraws at up to
+60 Hz from the pipeline's newest result (older ones are counted as stale by the pipeline, never
+queued here).
+
+The 3D point view (app/pointview.py, software-rendered in numpy) shows every 4th pixel each way
+(640x480: at most 19,200 points) of the newest depth map, coloured by depth like the depth panel.
+It **orbits slowly by itself** (yaw +-30 degrees, 8 s period) until an **arrow key** turns it
+(left/right = yaw, up/down = pitch, 10 degrees a press); Home returns to the camera's view and
+the orbit; c switches the point colours between depth and camera.
 
 Keys: space = snapshot (depth TIFF + PLY + PNGs into snapshot-NNN/), r = start/stop recording a
 dump (rec-YYYYmmdd-HHMMSS/), m = switch scheme (two-shot -> one-shot -> graycode), q / Esc = quit;
 closing the window quits too. A device fault ends the session with its message on the terminal.
+
+Threads: pyglet wants all windows of a process on one thread. The view's loop runs on the main
+thread and owns the projector window too when the rig has one (`PygletProjector`): the devices
+are opened here, and the capture loop's projector calls are handed to this thread
+(app/owner_thread.py), served between redraws. Esc, q or closing the projector window ends
+the session cleanly, as in the view.
 """
 
 from __future__ import annotations
@@ -20,11 +33,16 @@ import numpy as np
 
 from app import export
 from app.decode.stripemap import StripeMap
+from app.pointview import PointView, decimate, decimated_rays, depth_colours, render_points
 
 if TYPE_CHECKING:
     from app.commands.live import Session
+    from app.pipeline import Result
 
 SCHEME_CYCLE = ("two-shot", "one-shot", "graycode")
+REDRAW_S = 1 / 60
+POINT_BUDGET = 20_000  # points drawn at most: the decimation step follows from the camera size
+TURN_DEG = 10.0
 
 
 # ------------------------------------------------------------------------------------ pure images
@@ -47,11 +65,63 @@ def to_display(image: np.ndarray) -> np.ndarray:
     return image
 
 
+def panel_size(camera_size: tuple[int, int], screen_size: tuple[int, int]) -> tuple[int, int]:
+    """One panel of the 2 x 2 grid: the camera size, scaled down (never up) to fit the screen."""
+    w, h = camera_size
+    scale = min(1.0, (screen_size[0] - 16) / (2 * w), (screen_size[1] - 100) / (2 * h))
+    return max(1, int(w * scale)), max(1, int(h * scale))
+
+
+class PointPanel:
+    """The 3D point view of a result: decimated points, a slowly orbiting or key-turned pose."""
+
+    def __init__(self, ray: np.ndarray, camera_matrix: np.ndarray, depth_range_mm: tuple[float, float]) -> None:
+        h, w = ray.shape[:2]
+        self.step = max(1, int(np.ceil(np.sqrt(w * h / POINT_BUDGET))))
+        self.rays = decimated_rays(ray, self.step)
+        self.depth_range_mm = depth_range_mm
+        size = (self.rays.shape[2], self.rays.shape[1])
+        self.home = PointView.for_camera(camera_matrix, (w, h), size, 0.5 * (depth_range_mm[0] + depth_range_mm[1]))
+        self.view = self.home
+        self.manual = False  # an arrow key took over from the orbit
+        self.camera_colours = False
+        self.t0 = time.monotonic()
+
+    @property
+    def size(self) -> tuple[int, int]:
+        return self.home.size
+
+    def turn(self, d_yaw: float, d_pitch: float) -> None:
+        if not self.manual:
+            self.view = self.home.orbit(time.monotonic() - self.t0)  # start from what is on screen
+        self.view = self.view.turned(d_yaw, d_pitch)
+        self.manual = True
+
+    def reset(self) -> None:
+        self.view, self.manual, self.t0 = self.home, False, time.monotonic()
+
+    def pose(self) -> PointView:
+        return self.view if self.manual else self.home.orbit(time.monotonic() - self.t0)
+
+    def render(self, result: Result) -> np.ndarray:
+        xyz, _ = decimate(result.depth, self.rays, None, self.step)
+        if self.camera_colours:
+            # The brightest of the set's frames: two-shot lights each channel in one of its two frames.
+            frames = [to_display(f.image)[:: self.step, :: self.step] for f in result.frameset.frames]
+            rgb = np.maximum.reduce(frames)[result.depth[:: self.step, :: self.step] > 0]
+        else:
+            rgb = depth_colours(xyz, self.depth_range_mm)
+        return render_points(xyz, rgb, self.pose())
+
+
+# ------------------------------------------------------------------------------------ window
+
+
 # ------------------------------------------------------------------------------------ window
 
 
 class LiveView:
-    """A pyglet window showing the newest result of a running LivePipeline."""
+    """A pyglet window showing the newest result of a running LivePipeline (see the module docstring)."""
 
     def __init__(self, session: Session, args: argparse.Namespace) -> None:
         from app.pipeline import LivePipeline
@@ -65,11 +135,32 @@ class LiveView:
         self.message = ""
         self.processor = session.processor()
         self.pipe: Any = None  # started once the window is open (no devices running behind a failed window)
+        self.projector: Any = None  # the rig's projector window, served by this thread (OwnerThreadProjector)
         self.cam_size = session.calibration.camera_size
+        self.points = self._point_panel()
+        self.win: Any = None
+        self.quit = False
+        self.redraw_ms: list[float] = []  # time of each redraw's image work (tests and the bench read it)
+        self.points_ms: list[float] = []
+
+    def _point_panel(self) -> PointPanel:
+        tri = self.processor.triangulator
+        return PointPanel(tri.ray, self.session.calibration.camera_matrix, tri.depth_range_mm)
 
     def _start_pipeline(self):
+        from app.owner_thread import OwnerThreadProjector
+
+        def hand_over(projector: Any) -> Any:
+            # A window that belongs to this thread (pyglet) is served from the view's loop.
+            if hasattr(projector, "request_stop") and not getattr(projector, "any_thread", False):
+                self.projector = OwnerThreadProjector(projector)
+                return self.projector
+            return projector
+
+        self.projector = None
+        loop = self.session.make_loop(wrap_projector=hand_over, timeout_s=self.args.timeout)
         pipe = self.LivePipeline(
-            lambda: self.session.make_loop(timeout_s=self.args.timeout),
+            lambda: loop,
             self.processor,
             workers=self.args.workers,
             max_frames=self.args.frames,
@@ -77,6 +168,20 @@ class LiveView:
         )
         pipe.start()
         return pipe
+
+    def _stop_pipeline(self) -> None:
+        """Stop the session, serving the projector window until the capture loop has closed it."""
+        self.pipe.stop()
+        while self.pipe.running:
+            if self.projector is not None:
+                self.projector.serve(0.01)
+            else:
+                time.sleep(0.01)
+        self.pipe.join()
+        if self.projector is not None:
+            self.projector.shutdown()
+            self.projector.projector.close()  # already closed by the loop, unless it failed first
+            self.projector = None
 
     # -- keys ------------------------------------------------------------------------------
     def snapshot(self) -> None:
@@ -110,8 +215,7 @@ class LiveView:
         nxt = SCHEME_CYCLE[(SCHEME_CYCLE.index(self.session.scheme) + 1) % len(SCHEME_CYCLE)]
         if self.recorder is not None:
             self.toggle_recording()  # a dump holds one scheme
-        self.pipe.stop()
-        self.pipe.join()
+        self._stop_pipeline()
         try:
             session = self.session.with_scheme(nxt)
             processor = session.processor()
@@ -120,78 +224,108 @@ class LiveView:
             self.pipe = self._start_pipeline()
             return
         self.session, self.processor = session, processor
+        self.points = self._point_panel()
         self.pipe = self._start_pipeline()
         self.message = f"scheme: {nxt}"
 
     def close(self) -> None:
-        self.pipe.stop()
-        self.pipe.join()
+        self._stop_pipeline()
         if self.recorder is not None:
             rec = self.pipe.set_recorder(None) or self.recorder
             rec.close()
             self.record_msgs.append(rec.summary())
             self.recorder = None
 
+    def on_key(self, symbol: int, key: Any) -> None:
+        if symbol in (key.ESCAPE, key.Q):
+            self.quit = True
+        elif symbol == key.SPACE:
+            self.snapshot()
+        elif symbol == key.R:
+            self.toggle_recording()
+        elif symbol == key.M:
+            self.switch_scheme()
+        elif symbol == key.C:
+            self.points.camera_colours = not self.points.camera_colours
+        elif symbol == key.HOME:
+            self.points.reset()
+        else:
+            turn = {key.LEFT: (-TURN_DEG, 0), key.RIGHT: (TURN_DEG, 0), key.UP: (0, TURN_DEG), key.DOWN: (0, -TURN_DEG)}
+            if symbol in turn:
+                self.points.turn(*turn[symbol])
+
     # -- drawing ---------------------------------------------------------------------------
     def run(self) -> int:
         from drivers.projector.screens import import_pyglet, open_display
 
         pyglet = import_pyglet()
+        from pyglet import gl
         from pyglet.window import key
 
-        # Three panes side by side, scaled down (never up) to fit the operator's screen.
-        w, h = self.cam_size
         screen = open_display().get_default_screen()
-        scale = min(1.0, (screen.width - 16) / (3 * w), (screen.height - 100) / h)
-        pw, ph = int(w * scale), int(h * scale)
-        win = pyglet.window.Window(3 * pw, ph + 28, caption="slscan live", vsync=False)
-        blank = np.zeros((self.cam_size[1], self.cam_size[0], 3), np.uint8)
-        images = [pyglet.image.ImageData(blank.shape[1], blank.shape[0], "RGB", blank.tobytes()) for _ in range(3)]
-        label = pyglet.text.Label("", x=6, y=8, font_size=11, color=(255, 255, 255, 255))
+        pw, ph = panel_size(self.cam_size, (screen.width, screen.height))
+        status_h = 44  # two lines: the status line wraps on a narrow window
+        self.win = win = pyglet.window.Window(2 * pw, 2 * ph + status_h, caption="slscan live", vsync=False)
+        self.panel_rects = [(0, 0, pw, ph), (pw, 0, pw, ph), (0, ph, pw, ph), (pw, ph, pw, ph)]  # x, y from the top
+        images: list[Any] = []
+        for w, h in [self.cam_size] * 3 + [self.points.size]:
+            blank = np.zeros((h, w, 3), np.uint8)
+            images.append(pyglet.image.ImageData(w, h, "RGB", blank.tobytes()))
+        label = pyglet.text.Label(
+            "", x=6, y=status_h - 4, width=2 * pw - 12, multiline=True, anchor_y="top", font_size=10
+        )
         titles = [
-            pyglet.text.Label(t, x=i * pw + 6, y=ph + 28 - 18, font_size=10, color=(255, 255, 0, 255))
-            for i, t in enumerate(("camera", "stripes", "depth"))
+            pyglet.text.Label(t, x=x + 6, y=2 * ph + status_h - y - 18, font_size=10, color=(255, 255, 0, 255))
+            for t, (x, y, _, _) in zip(("camera", "stripes", "depth", "3D points"), self.panel_rects, strict=True)
         ]
-
-        self.pipe = self._start_pipeline()
 
         def upload(i: int, rgb: np.ndarray) -> None:
             rgb = np.ascontiguousarray(to_display(rgb))
-            images[i].set_data("RGB", -rgb.shape[1] * 3, rgb.tobytes())  # negative pitch: row 0 on top
+            img = images[i]
+            img.set_data("RGB", -rgb.shape[1] * 3, rgb.tobytes())  # negative pitch: row 0 on top
+            if i == 3:  # points stay crisp squares when the panel scales them up
+                tex = img.get_texture()
+                gl.glBindTexture(tex.target, tex.id)
+                gl.glTexParameteri(tex.target, gl.GL_TEXTURE_MAG_FILTER, gl.GL_NEAREST)
+                gl.glTexParameteri(tex.target, gl.GL_TEXTURE_MIN_FILTER, gl.GL_NEAREST)
 
-        @win.event
-        def on_draw() -> None:
+        def draw() -> None:
+            win.switch_to()
             win.clear()
-            for i, img in enumerate(images):
-                img.blit(i * pw, 28, width=pw, height=ph)
+            for img, (x, y, w, h) in zip(images, self.panel_rects, strict=True):
+                img.blit(x, 2 * ph + status_h - y - h, width=w, height=h)
             for t in titles:
                 t.draw()
             label.draw()
+            win.flip()
 
         @win.event
         def on_key_press(symbol: int, modifiers: int) -> bool:
-            if symbol in (key.ESCAPE, key.Q):
-                pyglet.app.exit()
-            elif symbol == key.SPACE:
-                self.snapshot()
-            elif symbol == key.R:
-                self.toggle_recording()
-            elif symbol == key.M:
-                self.switch_scheme()
+            self.on_key(symbol, key)
             return True
 
         @win.event
-        def on_close() -> None:
-            pyglet.app.exit()
+        def on_close() -> bool:
+            self.quit = True
+            return True  # closed below, after the session stopped
 
-        def tick(dt: float) -> None:
+        last: Result | None = None
+
+        def tick() -> None:
+            nonlocal last
+            t0 = time.perf_counter()
             res = self.pipe.take_latest()
             if res is not None:
+                last = res
                 upload(0, res.image)
                 upload(1, stripe_colours(res.stripes))
                 upload(2, colourise_depth(res.depth, self.processor.triangulator.depth_range_mm))
             elif self.pipe.latest_frame is not None and self.pipe.latest is None:
                 upload(0, self.pipe.latest_frame.image)
+            if last is not None:
+                t1 = time.perf_counter()
+                upload(3, self.points.render(last))
+                self.points_ms.append((time.perf_counter() - t1) * 1e3)
             rec = f"REC {self.recorder.stats.written}" if self.recorder is not None else ""
             if self.recorder is not None and self.recorder.message:
                 rec = self.recorder.message
@@ -202,18 +336,35 @@ class LiveView:
                 + status_line(self.pipe.figures(), rec)
                 + (f"  | {self.message}" if self.message else "")
             )
-            if not self.pipe.running:
-                pyglet.app.exit()
+            self.redraw_ms.append((time.perf_counter() - t0) * 1e3)
+            del self.redraw_ms[:-1000], self.points_ms[:-1000]
 
-        pyglet.clock.schedule_interval(tick, 1 / 60)
+        self.pipe = self._start_pipeline()
+        next_draw = time.monotonic()
         try:
-            pyglet.app.run()
+            # The view's own loop (not pyglet.app.run, which would redraw and flip the projector
+            # window too): projector calls, scheduled functions, window events, then a redraw.
+            while not self.quit:
+                wait = min(0.005, max(0.0, next_draw - time.monotonic()))
+                if self.projector is not None:
+                    self.projector.serve(wait)
+                elif wait:
+                    time.sleep(wait)
+                pyglet.clock.tick()
+                win.dispatch_events()
+                if self.quit or not self.pipe.running:
+                    break
+                if time.monotonic() >= next_draw:
+                    next_draw = max(next_draw + REDRAW_S, time.monotonic() - REDRAW_S)
+                    tick()
+                    draw()
         except KeyboardInterrupt:
             pass
         finally:
-            pyglet.clock.unschedule(tick)
-            win.close()
-            self.close()
+            try:
+                self.close()
+            finally:
+                win.close()
         for msg in self.record_msgs:
             print(msg)
         if self.pipe.error:

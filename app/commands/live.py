@@ -68,8 +68,14 @@ class Session:
     pace: bool = True  # False: the camera paces itself (a replayed dump)
     source: str = ""  # what the session runs on, for messages
 
-    def make_loop(self, **kw: Any) -> CaptureLoop:
+    def make_loop(self, wrap_projector: Callable[[Any], Any] | None = None, **kw: Any) -> CaptureLoop:
+        """Open the devices on the calling thread (a pyglet window belongs to it) and load the patterns.
+
+        wrap_projector: applied to the projector first (the view hands its window to the main thread).
+        """
         camera, projector, trigger = self.make_devices()
+        if projector is not None and wrap_projector is not None:
+            projector = wrap_projector(projector)
         if projector is not None:
             projector.load(self.patterns.images)
         kw.setdefault("pace", self.pace)
@@ -159,9 +165,13 @@ def build_session(
     opts = _scheme_options(cfg, scheme)
 
     if "sim" in (cam_name, proj_name, trig_name):
-        if not cam_name == proj_name == "sim" or trig_name not in ("sim", None):
-            raise InputError(f"{cfg.path}: key 'rig': the virtual rig's camera, projector and trigger go together")
-        return _sim_session(cfg, scheme, opts, rate, depth_range, sim_overrides or {})
+        if cam_name != "sim" or trig_name not in ("sim", None):
+            raise InputError(
+                f"{cfg.path}: key 'rig': the virtual rig's camera and trigger go together "
+                "(its projector may be a real window the virtual camera watches)"
+            )
+        window = None if proj_name == "sim" else (proj_name, proj_opts)
+        return _sim_session(cfg, scheme, opts, rate, depth_range, sim_overrides or {}, window)
 
     # Real hardware: the projector's size fixes the pattern size; the calibration comes from the config.
     cal_path = cfg.get("calibration", types=str)
@@ -192,10 +202,48 @@ def build_session(
     return Session(cfg, scheme, patterns, calibration, rng, rate, make_devices, opts)  # type: ignore[arg-type]
 
 
+class WatchedWindow:
+    """A real projector window (e.g. pyglet) that the virtual rig's camera watches.
+
+    Every call goes to both: the window shows the pattern on a real screen, the virtual projector
+    lights the simulated scene with it. The window's flip time is the one reported.
+    """
+
+    def __init__(self, window: Any, sim_projector: Any) -> None:
+        self.window, self.sim = window, sim_projector
+        self.name, self.size = f"{window.name}+sim", tuple(window.size)
+
+    def load(self, images: Any) -> None:
+        self.sim.load(images)
+        self.window.load(images)
+
+    def show(self, index: int | None) -> Any:
+        self.sim.show(index)  # applies from the next tick, as the window's flip does
+        return self.window.show(index)
+
+    def close(self) -> None:
+        try:
+            self.window.close()
+        finally:
+            self.sim.close()
+
+    def __getattr__(self, name: str) -> Any:  # request_stop, stop_requested, poll, flips, ...
+        return getattr(self.window, name)
+
+
 def _sim_session(
-    cfg: Config, scheme: str, opts: dict, rate: float, depth_range: list | None, overrides: dict
+    cfg: Config,
+    scheme: str,
+    opts: dict,
+    rate: float,
+    depth_range: list | None,
+    overrides: dict,
+    window: tuple[str, dict] | None = None,
 ) -> Session:
-    """The virtual rig (drivers/sim, issue 3): its true calibration goes with every result and dump."""
+    """The virtual rig (drivers/sim, issue 3): its true calibration goes with every result and dump.
+
+    window: (driver, options) of a real projector window shown along with the virtual projector.
+    """
     try:
         sim_devices = importlib.import_module(SIM_MODULE)
     except ImportError as exc:
@@ -211,10 +259,20 @@ def _sim_session(
 
     def make_devices() -> tuple[Any, Any, Any]:
         if used["done"]:  # a second loop (scheme switch) gets a fresh virtual rig
-            fresh = sim_devices.make_sim_rig(cfg)
-            return fresh.camera, fresh.projector, fresh.trigger
-        used["done"] = True
-        return devices.camera, devices.projector, devices.trigger
+            devs = sim_devices.make_sim_rig(cfg)
+        else:
+            used["done"] = True
+            devs = devices
+        if window is None:
+            return devs.camera, devs.projector, devs.trigger
+        shown = _make(cfg, "projector", PROJECTORS, window[0], window[1])
+        if tuple(shown.size) != tuple(devs.projector.size):
+            shown.close()
+            raise DeviceError(
+                f"projector {shown.name} is {shown.size[0]}x{shown.size[1]} but {cfg.path} key 'sim.projector_size' "
+                f"says {devs.projector.size[0]}x{devs.projector.size[1]}"
+            )
+        return devs.camera, WatchedWindow(shown, devs.projector), devs.trigger
 
     return Session(cfg, scheme, patterns, calibration, rng, rate, make_devices, opts, sim=devices)  # type: ignore[arg-type]
 
