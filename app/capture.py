@@ -69,6 +69,10 @@ class FlipLog:
     def get(self, tick: int) -> Shown | None:
         return self._entries.get(tick)
 
+    def entries(self) -> list[Shown]:
+        """Every entry kept, in the order the ticks were first recorded."""
+        return [self._entries[t] for t in self._order]
+
     def mark_late(self, tick: int) -> None:
         s = self._entries.get(tick)
         if s is not None:

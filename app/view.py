@@ -314,6 +314,7 @@ class LiveView:
         def tick() -> None:
             nonlocal last
             t0 = time.perf_counter()
+            win.switch_to()  # the projector window's show may have made its own GL context current
             res = self.pipe.take_latest()
             if res is not None:
                 last = res

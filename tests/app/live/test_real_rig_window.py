@@ -1,0 +1,128 @@
+"""The live session with a real projector window and the operator view in one process (Xvfb).
+
+The rig: the pyglet projector window (fullscreen, 1024x768) shows the patterns that the virtual
+rig's camera watches (sim camera and trigger, config `projector: {driver: pyglet}`). Both windows
+live on the main thread; the capture loop's projector calls are served there between redraws.
+Checked: what the X server shows is exactly the pattern the pipeline's flip log says was shown
+at that flip, the view window is open beside it, and the session stops cleanly on q in the view
+and when the projector window is closed (a WM_DELETE_WINDOW message, what a window manager sends).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+pytestmark = pytest.mark.xserver
+
+RIG = """\
+rig:
+  camera: {driver: sim}
+  projector: {driver: pyglet, screen: 0}
+  trigger: {driver: sim}
+sim:
+  scene: face
+  camera_size: [320, 240]
+  projector_size: [1024, 768]
+scheme: {name: two-shot}
+capture: {rate_hz: 60}
+"""
+
+SCRIPT = textwrap.dedent(
+    """
+    import argparse, sys, time
+    import numpy as np
+    from Xlib import X, display as xdisplay
+    from Xlib.protocol import event
+    from app.commands.live import build_session
+    from app.view import LiveView
+    from drivers.projector.screens import import_pyglet
+
+    pyglet = import_pyglet()
+    from pyglet.window import key
+
+    how = sys.argv[2]
+    session = build_session(sys.argv[1])
+    view = LiveView(session, argparse.Namespace(timeout=3.0, workers=1, frames=None, png_level=0))
+    conn = xdisplay.Display()
+    root = conn.screen().root
+    state = {"grabs": [], "stopping": False}
+
+    def windows():
+        return {w.get_wm_name(): w for w in root.query_tree().children if w.get_wm_name()}
+
+    def drive(dt):
+        pipe = view.pipe
+        if pipe is None or pipe.latest is None or pipe.loop is None or state["stopping"]:
+            return
+        if len(state["grabs"]) < 8:
+            # On the main thread no flip can happen during the grab: the screen holds the window's last flip.
+            pattern, flip_ns = view.projector.window.flips[-1]
+            raw = root.get_image(0, 0, 1024, 768, X.ZPixmap, 0xFFFFFFFF).data
+            px = np.frombuffer(raw, np.uint8).reshape(768, 1024, 4)[:, :, 2::-1]
+            state["grabs"].append((flip_ns, px))
+            time.sleep(0.03)  # the next grab sees another flip
+            return
+        # The pipeline logs a flip once its show returned: match each grab to its log entry by flip time.
+        log = {s.flip_ns: s for s in pipe.loop.flips.entries()}
+        for flip_ns, px in state["grabs"]:
+            shown = log.get(flip_ns)
+            tag = None if shown is None else shown.pattern
+            exact = tag is not None and np.array_equal(px, session.patterns.images[tag])
+            print("grab", tag, exact, None if shown is None else shown.late, flush=True)
+        wins = windows()
+        for name in ("slscan live", "slscan projector"):
+            w = wins.get(name)
+            viewable = w is not None and w.get_attributes().map_state == X.IsViewable
+            g = w.get_geometry() if w is not None else None
+            print("window", name.replace(" ", "_"), viewable, g and f"{g.width}x{g.height}", flush=True)
+        state["stopping"] = True
+        if how == "view-q":
+            view.win.dispatch_event("on_key_press", key.Q, 0)
+        else:  # the operator closes the projector window
+            w = wins["slscan projector"]
+            proto, delete = conn.intern_atom("WM_PROTOCOLS"), conn.intern_atom("WM_DELETE_WINDOW")
+            w.send_event(event.ClientMessage(window=w, client_type=proto, data=(32, [delete, X.CurrentTime, 0, 0, 0])))
+            conn.flush()
+
+    pyglet.clock.schedule_interval(drive, 0.05)
+    code = view.run()
+    conn.sync()
+    print("projector window left", "slscan projector" in windows(), flush=True)
+    print("frames", view.pipe.capture.frames, "depth maps", view.pipe.stats.decoded, flush=True)
+    raise SystemExit(code)
+    """
+)
+
+
+@pytest.mark.parametrize("how", ["view-q", "close-projector"])
+def test_projector_window_and_view_in_one_process(tmp_path, xserver, how):
+    (tmp_path / "rig.yaml").write_text(RIG)
+    env = {**os.environ, "DISPLAY": xserver}
+    r = subprocess.run(
+        [sys.executable, "-c", SCRIPT, str(tmp_path / "rig.yaml"), how],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=240,
+    )
+    assert r.returncode == 0, r.stdout + r.stderr[-3000:]
+    lines = r.stdout.splitlines()
+    grabs = [line.split() for line in lines if line.startswith("grab ")]
+    assert len(grabs) == 8, r.stdout
+    # every grab: the screen is exactly the pattern the pipeline tagged that flip with; both patterns seen
+    assert all(g[2] == "True" for g in grabs), r.stdout
+    assert {g[1] for g in grabs} == {"0", "1"}, r.stdout
+    assert "window slscan_live True 640x524" in lines, r.stdout  # 2 x 2 panels of 320x240 + status
+    assert "window slscan_projector True 1024x768" in lines, r.stdout
+    assert "projector window left False" in lines, r.stdout
+    frames = next(line.split() for line in lines if line.startswith("frames "))
+    assert int(frames[1]) > 20 and int(frames[4]) >= 1
+    if how == "close-projector":
+        assert "slscan live: stopped cleanly: the projector window was closed" in r.stdout
+    assert "Traceback" not in r.stderr
