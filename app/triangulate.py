@@ -9,6 +9,13 @@ the per-frame path only finds the node interval and interpolates linearly in w; 
 until the interpolation error at the interval midpoints is below `max_error_px`. The same table
 gives each pixel's allowed column interval, which picks between repeated copies of a stripe
 sequence and masks everything outside the depth range.
+
+The per-frame path is faster still when u(w) is nearly a Moebius map: with t = (w - w_near) /
+(w_far - w_near), u = (a + b t) / (1 + c t) per pixel, fitted through the near, middle and far
+nodes, inverts in closed form, t = (u - a) / (b - c u): no search, 12 bytes a pixel instead of
+4 K. It is exact without projector distortion; it is used when it stays within half of
+max_error_px at the nodes and between them (measured 0.0012 px on the virtual rig's distorted
+projector, where the node table is 0.0097 px off), else the node table is used.
 """
 
 from __future__ import annotations
@@ -61,6 +68,50 @@ def _depth_from_column(column, nodes, w0, dw, depth):
             depth[y, x] = 1.0 / (w0 + (i + t) * dw)
 
 
+@njit(cache=True, nogil=True)
+def _depth_from_column_moebius(column, coef, w0, w_span, depth):
+    H, W = column.shape
+    for y in range(H):
+        for x in range(W):
+            u = column[y, x]
+            depth[y, x] = 0.0
+            if not (u == u):  # NaN
+                continue
+            a = np.float64(coef[y, x, 0])
+            b = np.float64(coef[y, x, 1])
+            c = np.float64(coef[y, x, 2])
+            den = b - c * u
+            if not (den != 0.0):  # also NaN: a ray without a monotone column
+                continue
+            t = (u - a) / den
+            if t < 0.0 or t > 1.0:
+                continue  # outside the depth range
+            depth[y, x] = 1.0 / (w0 + t * w_span)
+
+
+def fit_moebius(nodes: np.ndarray) -> tuple[np.ndarray, float]:
+    """Per pixel (a, b, c) of u(t) = (a + b t) / (1 + c t) through the first, middle and last of K nodes
+    (t = 0, 1/2, 1), and the largest deviation from the other nodes in px (NaN rays excluded)."""
+    K = nodes.shape[2]
+    u0 = nodes[:, :, 0].astype(np.float64)
+    um = nodes[:, :, (K - 1) // 2].astype(np.float64)
+    u1 = nodes[:, :, K - 1].astype(np.float64)
+    tm = ((K - 1) // 2) / (K - 1)
+    # a = u0; (a + b) = u1 (1 + c); (a + b tm) = um (1 + c tm)  ->  c = (u0 - um + tm (u1 - u0)) / (tm (um - u1))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c = (u0 - um + tm * (u1 - u0)) / (tm * (um - u1))
+        b = u1 * (1 + c) - u0
+        coef = np.stack([u0, b, c], axis=2)
+        worst = 0.0
+        for i in range(1, K - 1):
+            t = i / (K - 1)
+            pred = (u0 + b * t) / (1 + c * t)
+            dev = np.abs(pred - nodes[:, :, i])
+            if np.isfinite(dev).any():
+                worst = max(worst, float(np.nanmax(dev)))
+    return coef.astype(np.float32), worst
+
+
 @dataclass
 class PointCloud:
     xyz: np.ndarray  # (N, 3) float32 mm, camera coordinates
@@ -107,6 +158,20 @@ class Triangulator:
         self.nodes[~monotone] = np.nan  # rays along which the projector column is not monotone
         self.column_lo = np.minimum(nodes[:, :, 0], nodes[:, :, -1]).astype(np.float32)
         self.column_hi = np.maximum(nodes[:, :, 0], nodes[:, :, -1]).astype(np.float32)
+        coef, dev = fit_moebius(self.nodes)
+        # also between the nodes, on the subsample the node table's error is measured on
+        sub = coef[::8, ::8].astype(np.float64)
+        with np.errstate(invalid="ignore"):
+            for i in range(K - 1):
+                t = (i + 0.5) / (K - 1)
+                true = self._project_u(self.ray[::8, ::8], self.w0 + (i + 0.5) * self.dw)
+                pred = (sub[..., 0] + sub[..., 1] * t) / (1 + sub[..., 2] * t)
+                d = np.abs(pred - true)
+                if np.isfinite(d).any():
+                    dev = max(dev, float(np.nanmax(d)))
+        self.moebius_error_px = dev
+        # the closed form only well inside the table's error budget
+        self.moebius = coef if dev <= 0.5 * max_error_px else None
 
     def _project_u(self, ray: np.ndarray, w: float) -> np.ndarray:
         """Distorted projector column of the points at inverse depth w on the given camera rays."""
@@ -151,20 +216,43 @@ class Triangulator:
         if column.shape != (h, w):
             raise InputError(f"column map is {column.shape[1]}x{column.shape[0]}, calibration camera is {w}x{h}")
         out = np.empty((h, w), np.float32)
-        _depth_from_column(np.ascontiguousarray(column, np.float32), self.nodes, self.w0, self.dw, out)
+        column = np.ascontiguousarray(column, np.float32)
+        if self.moebius is not None:
+            K = self.nodes.shape[2]
+            _depth_from_column_moebius(column, self.moebius, self.w0, (K - 1) * self.dw, out)
+        else:
+            _depth_from_column(column, self.nodes, self.w0, self.dw, out)
         return out
 
     def points(self, depth: np.ndarray, image: np.ndarray | None = None) -> PointCloud:
         """Camera-frame 3D points (mm) of the pixels with depth, coloured from `image` (RGB)."""
-        m = depth > 0
-        z = depth[m]
-        xyz = np.empty((z.size, 3), np.float32)
-        xyz[:, 0] = self.ray[..., 0][m] * z
-        xyz[:, 1] = self.ray[..., 1][m] * z
-        xyz[:, 2] = z
-        if image is None:
-            rgb = np.full((z.size, 3), 255, np.uint8)
-        else:
-            img = image if image.dtype == np.uint8 else (image >> 8).astype(np.uint8)
-            rgb = np.ascontiguousarray(img[m])
+        if image is not None and image.dtype != np.uint8:
+            image = (image >> 8).astype(np.uint8)
+        depth = np.ascontiguousarray(depth, np.float32)
+        n = int(np.count_nonzero(depth > 0))
+        xyz = np.empty((n, 3), np.float32)
+        rgb = np.empty((n, 3), np.uint8)
+        img = np.ascontiguousarray(image) if image is not None else _WHITE
+        _gather_points(depth, self.ray, img, image is not None, xyz, rgb)
         return PointCloud(xyz, rgb)
+
+
+_WHITE = np.full((1, 1, 3), 255, np.uint8)
+
+
+@njit(cache=True, nogil=True)
+def _gather_points(depth, ray, image, coloured, xyz, rgb):
+    """One pass in row-major order (the order of boolean-mask indexing) instead of five masked gathers."""
+    H, W = depth.shape
+    i = 0
+    for y in range(H):
+        for x in range(W):
+            z = depth[y, x]
+            if not (z > 0):
+                continue
+            xyz[i, 0] = ray[y, x, 0] * z
+            xyz[i, 1] = ray[y, x, 1] * z
+            xyz[i, 2] = z
+            for c in range(3):
+                rgb[i, c] = image[y, x, c] if coloured else 255
+            i += 1

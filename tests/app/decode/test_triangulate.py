@@ -43,6 +43,31 @@ def test_depth_of_a_curved_surface_is_exact(tri):
     assert np.sqrt(np.mean((got - depth) ** 2)) < 0.03
 
 
+def _curved_depth(tri):
+    h, w = tri.ray.shape[:2]
+    ys, xs = np.mgrid[0:h, 0:w]
+    return 800.0 + 150.0 * np.sin(xs / 30.0) * np.cos(ys / 40.0)
+
+
+@pytest.mark.parametrize("proj_dist", [np.zeros(5), np.array([0.035, -0.05, 0.0, 0.0, 0.0])])
+def test_closed_form_path_is_exact_where_the_column_is_nearly_moebius(proj_dist):
+    # no projector distortion: u(1/Z) is exactly a Moebius map; the virtual rig's mild distortion: nearly
+    cal = make_calibration(cam=(160, 120), proj=(256, 192), fc=300, fp=190, proj_dist=proj_dist)
+    tri = Triangulator(cal, (600.0, 1000.0))
+    assert tri.moebius is not None and tri.moebius_error_px <= 0.005
+    depth = _curved_depth(tri)
+    got = tri.depth(exact_column(tri, depth))
+    assert (got > 0).all()
+    assert np.abs(got - depth).max() < (0.01 if not proj_dist.any() else 0.05)
+    beyond = exact_column(tri, np.full(depth.shape, 1100.0))
+    assert (tri.depth(beyond) == 0).all()
+
+
+def test_strong_projector_distortion_keeps_the_node_table(tri):
+    # the module's calibration bends columns too much over its long depth range for one Moebius map
+    assert tri.moebius is None and tri.moebius_error_px > 0.005
+
+
 def test_rays_are_undistorted(tri):
     cal = tri.calibration
     pts = np.array([[3.0, 7.0], [150.0, 100.0]])
