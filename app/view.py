@@ -33,7 +33,7 @@ import numpy as np
 
 from app import export
 from app.decode.stripemap import StripeMap
-from app.pointview import PointView, decimate, decimated_rays, depth_colours, render_points
+from app.pointview import _TURBO, PointView, decimate, decimated_rays, depth_colours, render_points
 
 if TYPE_CHECKING:
     from app.commands.live import Session
@@ -56,6 +56,39 @@ def stripe_colours(stripes: StripeMap) -> np.ndarray:
 def colourise_depth(depth: np.ndarray, depth_range_mm: tuple[float, float] | None = None) -> np.ndarray:
     """Depth (mm, 0 = none) as RGB over the working range, as `slscan decode` previews it; black = none."""
     return export.depth_preview(depth, depth_range_mm)
+
+
+# The view's stripe colours: export.stripe_colours of every stripe number, looked up per pixel.
+_STRIPE_TABLE = export.stripe_colours(np.arange(-1, 1 << 14, dtype=np.int64).reshape(1, -1))[0]  # [0] = none
+
+
+def stripe_panel(stripes: StripeMap) -> np.ndarray:
+    """stripe_colours(stripes), pixel for pixel, in a fraction of its time (one table lookup per pixel)."""
+    s = np.floor((stripes.column + 0.5) / stripes.stripe_width)
+    np.fmax(s, -1, out=s)  # NaN (no value) -> -1
+    np.minimum(s, len(_STRIPE_TABLE) - 2, out=s)
+    s += 1
+    return np.take(_STRIPE_TABLE, s.astype(np.intp), axis=0)  # np.take: ~4x faster than fancy indexing here
+
+
+_TURBO_NONE = np.concatenate([_TURBO, np.zeros((1, 3), np.uint8)])  # index 256 = no depth (black)
+
+
+def depth_panel(depth: np.ndarray, depth_range_mm: tuple[float, float] | None = None) -> np.ndarray:
+    """colourise_depth(depth, range), pixel for pixel: the same float32 steps in place, then one table lookup."""
+    m = depth > 0
+    if depth_range_mm is None:
+        lo, hi = (float(depth[m].min()), float(depth[m].max())) if m.any() else (0.0, 1.0)
+    else:
+        lo, hi = depth_range_mm
+    t = depth - np.float32(lo)
+    t /= np.float32(max(hi - lo, 1e-6))
+    np.clip(t, 0, 1, out=t)
+    np.subtract(1, t, out=t)
+    t *= 255
+    g = t.astype(np.uint8).astype(np.uint16)
+    g[~m] = 256  # the table's black entry: no value
+    return np.take(_TURBO_NONE, g, axis=0)
 
 
 def to_display(image: np.ndarray) -> np.ndarray:
@@ -319,8 +352,8 @@ class LiveView:
             if res is not None:
                 last = res
                 upload(0, res.image)
-                upload(1, stripe_colours(res.stripes))
-                upload(2, colourise_depth(res.depth, self.processor.triangulator.depth_range_mm))
+                upload(1, stripe_panel(res.stripes))
+                upload(2, depth_panel(res.depth, self.processor.triangulator.depth_range_mm))
             elif self.pipe.latest_frame is not None and self.pipe.latest is None:
                 upload(0, self.pipe.latest_frame.image)
             if last is not None:
