@@ -728,69 +728,51 @@ def vertical_check(out_col, out_chain, n_chains, tol, min_support):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, code, feat, noise):
+def _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, code, feat, noise):
     """twoshot_classify for row y of the frames into one-row buffers code (1, W), feat/noise (1, W, m).
 
-    Same arithmetic, block by block, with the coefficients and running maxima in locals: the output
-    buffers are float32 like the tables, so the compiler must assume they alias and reloads whatever
-    lives in an array after every store (that, not the arithmetic, cost most of the time). Written
-    out for the usual two pattern channels; any other count takes _classify_row_any.
+    Same arithmetic in three simple loops: differences and noise floors into the contiguous rows of
+    tmp (4, W), block maxima, then thresholds. Coefficients live in locals and each loop writes one
+    kind of array: the output buffers are float32 like the tables, so the compiler must assume they
+    alias and reloads whatever lives in an array after every store (that, not the arithmetic, cost
+    most of the time). Written out for the usual two pattern channels; bmax is (2, nb + 2) here.
+    Any other channel count takes _classify_row_any.
     """
     if unmix.shape[0] != 2:
         _classify_row_any(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, code, feat, noise)
         return
     W = code.shape[1]
     nb = (W + block - 1) // block
-    ta = t_abs * 0.5
-    u00 = unmix[0, 0]
-    u01 = unmix[0, 1]
-    u02 = unmix[0, 2]
-    u10 = unmix[1, 0]
-    u11 = unmix[1, 1]
-    u12 = unmix[1, 2]
-    w00 = abs(u00)
-    w01 = abs(u01)
-    w02 = abs(u02)
-    w10 = abs(u10)
-    w11 = abs(u11)
-    w12 = abs(u12)
+    ta = t_abs * np.float32(0.5)
+    fv0 = tmp[0]
+    fv1 = tmp[1]
+    nz0 = tmp[2]
+    nz1 = tmp[3]
+    _row_differences(
+        f1[y], f2[y], lin[0], lin[1], lin[2], dlin[0], dlin[1], dlin[2], unmix[0, 0], unmix[0, 1], unmix[0, 2],
+        unmix[1, 0], unmix[1, 1], unmix[1, 2], ta, fv0, fv1, nz0, nz1,
+    )  # fmt: skip
+    # block maxima of |d| at bmax[c, 1 + b], with zero guards at both ends
+    bm0 = bmax[0]
+    bm1 = bmax[1]
+    bm0[0] = 0.0
+    bm1[0] = 0.0
+    bm0[nb + 1] = 0.0
+    bm1[nb + 1] = 0.0
     for b in range(nb):
         x0 = b * block
         x1 = min(W, x0 + block)
-        mx0 = np.float32(0.0)
-        mx1 = np.float32(0.0)
+        m0 = np.float32(0.0)
+        m1 = np.float32(0.0)
         for x in range(x0, x1):
-            a0 = f1[y, x, 0]
-            a1 = f1[y, x, 1]
-            a2 = f1[y, x, 2]
-            b0 = f2[y, x, 0]
-            b1 = f2[y, x, 1]
-            b2 = f2[y, x, 2]
-            d0 = lin[0, b0] - lin[0, a0]
-            d1 = lin[1, b1] - lin[1, a1]
-            d2 = lin[2, b2] - lin[2, a2]
-            n0 = dlin[0, b0] + dlin[0, a0]
-            n1 = dlin[1, b1] + dlin[1, a1]
-            n2 = dlin[2, b2] + dlin[2, a2]
-            fv0 = u00 * d0 + u01 * d1 + u02 * d2
-            fv1 = u10 * d0 + u11 * d1 + u12 * d2
-            feat[0, x, 0] = fv0
-            feat[0, x, 1] = fv1
-            noise[0, x, 0] = ta * (w00 * n0 + w01 * n1 + w02 * n2)
-            noise[0, x, 1] = ta * (w10 * n0 + w11 * n1 + w12 * n2)
-            mx0 = max(mx0, abs(fv0))
-            mx1 = max(mx1, abs(fv1))
-        bmax[0, b] = mx0
-        bmax[1, b] = mx1
-    p0 = np.float32(0.0)
-    p1 = np.float32(0.0)
-    c0 = bmax[0, 0]
-    c1 = bmax[1, 0]
+            m0 = max(m0, abs(fv0[x]))
+            m1 = max(m1, abs(fv1[x]))
+        bm0[b + 1] = m0
+        bm1[b + 1] = m1
     for b in range(nb):
-        q0 = bmax[0, b + 1] if b + 1 < nb else np.float32(0.0)
-        q1 = bmax[1, b + 1] if b + 1 < nb else np.float32(0.0)
-        a0 = max(c0, max(p0, q0))
-        a1 = max(c1, max(p1, q1))
+        # the local amplitude: max |d| over this block and its two neighbours
+        a0 = max(bm0[b + 1], max(bm0[b], bm0[b + 2]))
+        a1 = max(bm1[b + 1], max(bm1[b], bm1[b + 2]))
         tr0 = t_rel * a0
         tr1 = t_rel * a1
         te0 = t_rel_edge * a0
@@ -798,18 +780,44 @@ def _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, 
         x0 = b * block
         x1 = min(W, x0 + block)
         for x in range(x0, x1):
-            nz0 = noise[0, x, 0]
-            nz1 = noise[0, x, 1]
-            d0 = feat[0, x, 0]
-            d1 = feat[0, x, 1]
-            ok = abs(d0) >= max(tr0, nz0) and abs(d1) >= max(tr1, nz1)
+            d0 = fv0[x]
+            d1 = fv1[x]
+            n0 = nz0[x]
+            n1 = nz1[x]
+            ok = abs(d0) >= max(tr0, n0) and abs(d1) >= max(tr1, n1)
             code[0, x] = ((1 if d0 < 0 else 0) | (2 if d1 < 0 else 0)) if ok else -1
-            noise[0, x, 0] = max(te0, nz0)  # the event mode's thresholds
-            noise[0, x, 1] = max(te1, nz1)
-        p0 = c0
-        p1 = c1
-        c0 = q0
-        c1 = q1
+            feat[0, x, 0] = d0
+            feat[0, x, 1] = d1
+            noise[0, x, 0] = max(te0, n0)  # the event mode's thresholds
+            noise[0, x, 1] = max(te1, n1)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _row_differences(a, b, l0, l1, l2, dl0, dl1, dl2, u00, u01, u02, u10, u11, u12, ta, fv0, fv1, nz0, nz1):
+    """Unmixed linear frame2 - frame1 of the two pattern channels, and their noise floors, for one row."""
+    w00 = abs(u00)
+    w01 = abs(u01)
+    w02 = abs(u02)
+    w10 = abs(u10)
+    w11 = abs(u11)
+    w12 = abs(u12)
+    for x in range(a.shape[0]):
+        a0 = a[x, 0]
+        a1 = a[x, 1]
+        a2 = a[x, 2]
+        b0 = b[x, 0]
+        b1 = b[x, 1]
+        b2 = b[x, 2]
+        e0 = l0[b0] - l0[a0]
+        e1 = l1[b1] - l1[a1]
+        e2 = l2[b2] - l2[a2]
+        n0 = dl0[b0] + dl0[a0]
+        n1 = dl1[b1] + dl1[a1]
+        n2 = dl2[b2] + dl2[a2]
+        fv0[x] = u00 * e0 + u01 * e1 + u02 * e2
+        fv1[x] = u10 * e0 + u11 * e1 + u12 * e2
+        nz0[x] = ta * (w00 * n0 + w01 * n1 + w02 * n2)
+        nz1[x] = ta * (w10 * n0 + w11 * n1 + w12 * n2)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -932,7 +940,8 @@ def twoshot_rows(
     m = unmix.shape[0]
     A = link_ok.shape[0]
     nb = (W + block - 1) // block
-    bmax = np.empty((m, nb), np.float32)
+    bmax = np.empty((m, nb + 2), np.float32)
+    tmp = np.empty((4, W), np.float32)
     code = np.empty((1, W), np.int8)
     feat = np.empty((1, W, m), np.float32)
     noise = np.empty((1, W, m), np.float32)
@@ -956,7 +965,7 @@ def twoshot_rows(
     n_r = 0
     stats = np.zeros(4, np.int64)  # dropped events, dropped runs, filled, clashes
     for y in range(H):
-        _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, code, feat, noise)
+        _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, code, feat, noise)
         nr = _event_runs(feat, noise, 0, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right)
         n_e = _label_row(
             y, nr, rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, colrow, table, A, k, period, sw,
