@@ -162,8 +162,12 @@ class CaptureWriter:
         calibration: Calibration | None = None,
         timestamps_ns: list[int] | None = None,
         calibration_is_truth: bool = False,
+        frame_ids: list[int] | None = None,
     ) -> str:
-        """Write one pose (frames[p] saw pattern p); returns its folder name."""
+        """Write one pose (frames[p] saw pattern p); returns its folder name.
+
+        frame_ids / timestamps_ns: the camera's, when the frames come from a camera (else numbered here).
+        """
         if len(frames) != len(self.patterns):
             raise ValueError(f"{len(frames)} frames for {len(self.patterns)} patterns")
         name = f"pose_{self.count:03d}"
@@ -171,7 +175,7 @@ class CaptureWriter:
         with DumpWriter(self.folder / name, self.patterns, calibration, extra=extra) as w:
             for p, img in enumerate(frames):
                 ts = timestamps_ns[p] if timestamps_ns else self._frame_id * 16_666_667
-                w.add(img, p, self._frame_id, ts)
+                w.add(img, p, frame_ids[p] if frame_ids else self._frame_id, ts)
                 self._frame_id += 1
         self.count += 1
         return name

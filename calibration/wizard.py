@@ -10,11 +10,12 @@ levels per channel: curves, colour mixing, a warning when a channel is nearly sa
 dark), enter = verdict and a flat-board validation scan, s = save the calibration (once the solve
 passes), q / esc = quit.
 On the virtual rig the board is moved with the keyboard: n = next suggested pose, f = flat and
-facing the camera, arrows = tilt,
-i/j/k/l = move, z/x = nearer/farther.
+facing the camera, arrows = tilt, i/j/k/l = move, z/x = nearer/farther.
 
-So far the wizard drives the virtual rig only; on real hardware, record the poses with the
-capture layout (calibration/capture.py) and solve them with `slscan calibrate --from`.
+The window drives a board source (calibration/source.py): the virtual rig with its keyboard-moved
+board, or a rig opened from the driver registries (calibration/rig_source.py: real devices, or
+the `sim` drivers through the same device protocol). The live view comes from the source's
+preview worker, off the UI thread; the window polls it.
 """
 
 from __future__ import annotations
@@ -25,99 +26,25 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from app.errors import InputError
-from app.patterns import graycode_patterns
+from app.errors import DeviceError, InputError
 from calibration import report
-from calibration.auto import fronto_pose, make_rig, rig_board
 from calibration.capture import CaptureWriter
 from calibration.correspondence import decode_projector_maps
-from calibration.poses import plan_poses
-from calibration.response import Response, level_image, level_plan, measure_response
-from calibration.validate import plane_scan
+from calibration.response import Response, measure_response
+from calibration.sim_source import SimBoardSource
+from calibration.source import BoardSource
 from calibration.wizard_state import WizardState, overlay
 
+__all__ = ["SimBoardSource", "WizardWindow", "run_wizard"]
+
 PANE = (640, 480)
-
-
-class SimBoardSource:
-    """The virtual rig with its board moved from the keyboard (there is no hand to hold it)."""
-
-    def __init__(self, scene: str, seed: int = 0, **rig_overrides: object) -> None:
-        self.rig = make_rig(scene, **rig_overrides)
-        self.board = rig_board(self.rig)
-        self.suggested = plan_poses(self.board, self.rig.calibration, 40, seed=seed)
-        self.k = 0
-        self.rvec, self.tvec = fronto_pose(self.board, self.rig)
-        self.patterns = graycode_patterns(self.rig.projector_size)
-        self.meta = {"size": list(self.patterns.size), **self.patterns.params}
-        self._prepared = None
-        self._pose_changed = True
-        self.rig.set_board_pose(self.rvec, self.tvec)
-        w, h = self.rig.projector_size
-        self._white = self.rig.prepare(np.full((h, w, 3), 255, np.uint8))
-
-    @property
-    def camera_size(self) -> tuple[int, int]:
-        return self.rig.camera_size
-
-    @property
-    def projector_size(self) -> tuple[int, int]:
-        return self.rig.projector_size
-
-    def live(self) -> np.ndarray:
-        return self.rig.render(self._white)
-
-    def move(self, drot=(0.0, 0.0), dt=(0.0, 0.0, 0.0)) -> None:
-        R, _ = cv2.Rodrigues(np.asarray(self.rvec, np.float64))
-        pts = self.board.object_points().astype(np.float64)
-        centre_b = (pts.min(0) + pts.max(0)) / 2
-        centre = R @ centre_b + self.tvec
-        dr, _ = cv2.Rodrigues(np.array([np.deg2rad(drot[0]), np.deg2rad(drot[1]), 0.0]))
-        R = dr @ R
-        centre = centre + np.asarray(dt, np.float64)
-        self.rvec = cv2.Rodrigues(R)[0].ravel()
-        self.tvec = centre - R @ centre_b
-        self.rig.set_board_pose(self.rvec, self.tvec)
-
-    def flat(self) -> None:
-        """The board facing the camera in the middle of the working range (colour levels, validation)."""
-        self.rvec, self.tvec = fronto_pose(self.board, self.rig)
-        self.rig.set_board_pose(self.rvec, self.tvec)
-
-    def next_suggested(self) -> None:
-        self.rvec, self.tvec = self.suggested[self.k % len(self.suggested)]
-        self.k += 1
-        self.rig.set_board_pose(self.rvec, self.tvec)
-
-    def capture(self) -> list[np.ndarray]:
-        if self._prepared is None:
-            self._prepared = [self.rig.prepare(img) for img in self.patterns.images]
-        return [self.rig.render(p) for p in self._prepared]
-
-    def levels(self) -> list[tuple[str, int, np.ndarray]]:
-        """Flat colour levels per channel on the board held where it is."""
-        return [(ch, lv, self.rig.render(level_image(self.projector_size, ch, lv))) for ch, lv in level_plan()]
-
-    @property
-    def camera_gamma(self) -> float:
-        return float(self.rig.options.camera_gamma)
-
-    def validation_scan(self, cal) -> str:
-        """Scan the board held flat and facing the camera; plane-fit residual of the result."""
-        self.rvec, self.tvec = fronto_pose(self.board, self.rig)
-        self.rig.set_board_pose(self.rvec, self.tvec)
-        column, _ = decode_projector_maps(self.capture(), self.meta)
-        scan = plane_scan(column, cal, self.rig.depth_range_mm, self.rig.ground_truth.depth)
-        return (
-            f"validation scan of the flat board: {scan.points} points, plane-fit residual {scan.plane_rms_mm:.3f} mm, "
-            f"depth error {scan.depth_error_pct:.3f} % vs truth"
-        )
+POLL_S = 1 / 20  # how often the window looks for a new live view
 
 
 class WizardWindow:
     """The operator window over a board source; keys go through `handle_key` (scriptable in tests)."""
 
-    def __init__(self, src: SimBoardSource, out: Path, capture_dir: Path) -> None:
+    def __init__(self, src: BoardSource, out: Path, capture_dir: Path) -> None:
         from drivers.projector.screens import display_name, import_pyglet
 
         display_name()  # a clear one-line error without a display, before pyglet tries
@@ -130,7 +57,9 @@ class WizardWindow:
         self.state = WizardState(src.board, src.camera_size, src.projector_size, writer)
         self.verdict: list[str] = []
         self.response: Response | None = None
-        self.win = pyglet.window.Window(2 * PANE[0], PANE[1] + 150, caption="slscan calibrate", vsync=False)
+        self.shown = 0  # the preview view on screen (its seq)
+        caption = f"slscan calibrate: {src.name}"
+        self.win = pyglet.window.Window(2 * PANE[0], PANE[1] + 150, caption=caption, vsync=False)
         blank = np.zeros((PANE[1], PANE[0], 3), np.uint8)
         self.panes = [pyglet.image.ImageData(PANE[0], PANE[1], "RGB", blank.tobytes()) for _ in range(2)]
         self.label = pyglet.text.Label(
@@ -143,8 +72,19 @@ class WizardWindow:
             key.I: ((0, 0), (0, -10, 0)), key.K: ((0, 0), (0, 10, 0)),
             key.Z: ((0, 0), (0, 0, -20)), key.X: ((0, 0), (0, 0, 20)),
         }  # fmt: skip
+        if not src.movable:
+            self.moves = {}
         self.win.push_handlers(on_draw=self.on_draw, on_key_press=self.on_key_press, on_close=self.on_close)
+        self.quit = False
         self.refresh()
+
+    def poll(self) -> bool:
+        """Show a new live view if the preview worker has one; True if it did."""
+        view = self.src.preview.latest()
+        if view is None or view.seq == self.shown:
+            return False
+        self.refresh()
+        return True
 
     def upload(self, i: int, rgb: np.ndarray) -> None:
         rgb = cv2.resize(np.ascontiguousarray(rgb), PANE, interpolation=cv2.INTER_AREA)
@@ -158,11 +98,14 @@ class WizardWindow:
         return img
 
     def refresh(self) -> None:
-        from calibration.board import detect
-
+        """Redraw both panes and the text from the newest live view and the state."""
         src, state = self.src, self.state
-        live = src.live()
-        det = detect(src.board, live)
+        view = src.preview.latest()
+        if view is not None:
+            self.shown = view.seq
+            live, det = view.image, view.detection
+        else:
+            live, det = np.zeros((src.camera_size[1], src.camera_size[0], 3), np.uint8), None
         self.upload(0, self.coverage_image(state.camera_coverage(), src.camera_size, overlay(live, det)))
         prj = self.coverage_image(state.projector_coverage(), src.projector_size)
         for p in state.poses:
@@ -170,29 +113,35 @@ class WizardWindow:
                 cv2.circle(prj, (round(float(x)), round(float(y))), 3, (255, 255, 0), -1)
         self.upload(1, prj)
         seen = f"board seen ({len(det)} corners)" if det is not None else "NO BOARD in view"
-        keys = (
-            "space capture · u undo · c colour · enter verdict · s save · "
-            "n next pose · f flat · arrows tilt · ijkl move · z/x depth · q quit"
-        )
+        if view is None:
+            seen = "waiting for the camera..."
+        if src.preview.error:
+            seen += f" · {src.preview.error}"
+        keys = "space capture · u undo · c colour · enter verdict · s save · q quit"
+        if src.movable:
+            keys += " · n next pose · f flat · arrows tilt · ijkl move · z/x depth"
         self.label.text = "\n".join([seen, *state.hints(), *state.messages[-3:], *self.verdict[-4:], keys])
 
     def handle_key(self, symbol: int) -> None:
         key, state, src = self.key, self.state, self.src
         if symbol == key.SPACE:
-            state.add_pose(src.capture(), src.meta, decode_projector_maps)
+            self.capture_pose()
         elif symbol in (key.U, key.BACKSPACE):
             state.undo()
-        elif symbol == key.N:
-            src.next_suggested()
-        elif symbol == key.F:
-            src.flat()
+        elif symbol == key.N and src.movable:
+            src.next_suggested()  # type: ignore[attr-defined]
+        elif symbol == key.F and src.movable:
+            src.flat()  # type: ignore[attr-defined]
         elif symbol == key.ENTER:
             self.verdict.clear()
             if state.solution is None or state.solution.calibration is None:
                 self.verdict.append(f"verdict: not yet: {len(state.poses)} poses")
             else:
                 self.verdict.append(report.verdict(state.solution))
-                self.verdict.append(src.validation_scan(state.solution.calibration))
+                try:
+                    self.verdict.append(src.validation_scan(state.solution.calibration))
+                except DeviceError as exc:
+                    self.verdict.append(f"validation scan failed: {exc}")
         elif symbol == key.C:
             self.measure_colour()
         elif symbol == key.S:
@@ -201,16 +150,28 @@ class WizardWindow:
                 if self.response is not None:
                     cal.color_mixing = self.response.color_mixing
                     cal.extra.update(self.response.as_extra())
-                    cal.extra["camera_gamma"] = self.src.camera_gamma
+                    if self.src.camera_gamma is not None:
+                        cal.extra["camera_gamma"] = self.src.camera_gamma
                 cal.save(self.out)
                 self.verdict.append(f"wrote {self.out}")
             else:
                 self.verdict.append("not saved: the solve has not passed its checks yet")
         elif symbol in self.moves:
-            src.move(*self.moves[symbol])
+            src.move(*self.moves[symbol])  # type: ignore[attr-defined]
         else:
             return
         self.refresh()
+
+    def capture_pose(self) -> None:
+        """Film the Gray code on the board as it is; a take that kept being refused saves nothing."""
+        try:
+            take = self.src.capture()
+        except DeviceError as exc:  # PoseNotCapturedError, or a device that failed: said, nothing saved
+            self.state.say(f"pose not captured: {exc} (hold the board still and press space again)")
+            return
+        self.state.add_pose(
+            take.frames, self.src.meta, decode_projector_maps, take.timestamps_ns, take.frame_ids, take.note()
+        )
 
     def measure_colour(self) -> None:
         """Flat levels per channel: response curves, colour mixing, saturation / darkness warnings."""
@@ -218,16 +179,21 @@ class WizardWindow:
 
         from calibration.capture import RESPONSE_DIR
 
-        levels = self.src.levels()
         try:
-            self.response = measure_response(levels, camera_gamma=self.src.camera_gamma)
+            levels = self.src.levels()
+        except DeviceError as exc:
+            self.verdict.append(f"colour levels not captured: {exc}")
+            return
+        gamma = self.src.camera_gamma
+        try:
+            self.response = measure_response(levels, camera_gamma=gamma if gamma is not None else 1.0)
         except ValueError as exc:
             self.verdict.append(f"colour response: {exc}")
             return
         writer = self.state.writer
         if writer is not None:
             shutil.rmtree(writer.folder / RESPONSE_DIR, ignore_errors=True)  # the latest measurement wins
-            writer.write_response(levels, camera_gamma=self.src.camera_gamma)
+            writer.write_response(levels, camera_gamma=gamma)
         self.verdict.extend(report.response_text(self.response).splitlines())
 
     def on_draw(self) -> None:
@@ -238,43 +204,92 @@ class WizardWindow:
 
     def on_key_press(self, symbol: int, modifiers: int) -> bool:
         if symbol in (self.key.ESCAPE, self.key.Q):
-            self.pyglet.app.exit()
+            self.quit = True
         else:
             self.handle_key(symbol)
         return True
 
     def on_close(self) -> None:
-        self.pyglet.app.exit()
+        self.quit = True
 
     def close(self) -> None:
         self.win.close()
 
     def run(self) -> None:
+        """The window's own loop, not pyglet.app.run: that would also redraw and flip a projector
+        window of the same process (with nothing drawn) between the patterns it shows."""
+        import time
+
         try:
-            self.pyglet.app.run()
+            while not self.quit:
+                self.win.dispatch_events()
+                pump = getattr(self.src, "pump", None)
+                if pump is not None:
+                    pump()
+                self.poll()
+                self.on_draw()
+                self.win.flip()
+                time.sleep(POLL_S)
         except KeyboardInterrupt:
             pass
         finally:
             self.close()
 
 
+def is_virtual_rig(cfg) -> bool:
+    """The virtual rig with its keyboard-moved board: every device `driver: sim` and nothing else.
+
+    Any other rig, including `sim` devices with options of their own, is opened through the driver
+    registries (calibration/rig_source.py) like real hardware.
+    """
+    rig = cfg.section("rig")
+    for kind in ("camera", "projector", "trigger"):
+        sec = rig.get(kind)
+        if sec is None and kind == "trigger":
+            continue
+        if not (isinstance(sec, dict) and sec == {"driver": "sim"}):
+            return False
+    return True
+
+
+def rig_board_file(cfg, board: str | None) -> Path:
+    """The printed board's description: --board, else the config's key `board` (relative to the config)."""
+    if board:
+        return Path(board)
+    name = cfg.get("board", None, types=str)
+    if name is None:
+        raise InputError(
+            f"{cfg.path}: a rig needs the printed board's description: --board board.yaml "
+            "(type, rows, cols, square_mm; see README) or key 'board' in the config"
+        )
+    return (cfg.path.parent / str(name)).resolve()
+
+
 def run_wizard(args: argparse.Namespace) -> int:
     from app.config import load_config
+    from calibration.board import load_board
 
     cfg = load_config(args.config)
-    drivers = {cfg.get(f"rig.{k}.driver", "sim") for k in ("camera", "projector")}
-    if drivers != {"sim"}:
-        raise InputError(
-            f"{cfg.path}: the interactive wizard drives the virtual rig only so far; record the poses as a "
-            "calibration capture (board.yaml + pose_NNN/ Gray-code dumps) and run slscan calibrate --from DIR"
-        )
+    virtual = is_virtual_rig(cfg)
+    board = None if virtual else load_board(rig_board_file(cfg, getattr(args, "board", None)))
     from drivers.projector.screens import display_name
 
     display_name()  # no display: one clear line before minutes of rig set-up
     out = Path(args.out)
     capture_dir = Path(args.capture) if args.capture else out.with_name(out.stem + ".capture")
-    window = WizardWindow(SimBoardSource(args.scene, args.seed), out, capture_dir)
-    window.run()
+    if capture_dir.exists() and (not capture_dir.is_dir() or any(capture_dir.iterdir())):
+        raise InputError(f"{capture_dir}: already exists; a capture is never overwritten (choose --capture DIR)")
+    if virtual:
+        src: BoardSource = SimBoardSource(args.scene, args.seed)
+    else:
+        from calibration.rig_source import RigBoardSource
+
+        src = RigBoardSource(cfg, board, camera_gamma=args.camera_gamma)  # type: ignore[arg-type]
+    try:
+        window = WizardWindow(src, out, capture_dir)
+        window.run()
+    finally:
+        src.close()
     n = len(window.state.poses)
     print(f"capture saved in {capture_dir} ({n} poses); slscan calibrate --from {capture_dir} repeats the solve")
     return 0

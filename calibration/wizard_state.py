@@ -75,21 +75,34 @@ class WizardState:
     messages: list[str] = field(default_factory=list)
 
     # -- capture ------------------------------------------------------------------------------
-    def add_pose(self, frames: list[np.ndarray], patterns_meta: dict, decode: Decoder) -> PoseResult:
-        """Observe a captured pose at once; keep it only if it gives corners (say why if not)."""
+    def add_pose(
+        self,
+        frames: list[np.ndarray],
+        patterns_meta: dict,
+        decode: Decoder,
+        timestamps_ns: list[int] | None = None,
+        frame_ids: list[int] | None = None,
+        note: str = "",
+    ) -> PoseResult:
+        """Observe a captured pose at once; keep it only if it gives corners (say why if not).
+
+        note: what the capture had to retake (said with the pose's figures).
+        """
         name = f"pose_{len(self.poses):03d}"
         result = observe_pose(self.board, PoseFrames(name, frames, patterns_meta), decode)
         if result.observation is None:
             self.say(f"not kept: {result.rejected.reason}")
             return result
         if self.writer is not None:
-            self.writer.add_pose(frames)
+            self.writer.add_pose(frames, timestamps_ns=timestamps_ns, frame_ids=frame_ids)
         self.poses.append(result)
         self.tilts.append(self._tilt(result))
         self.resolve()
         err = self.pose_error(len(self.poses) - 1)
         fig = f"camera {err[0]:.3f} px, projector {err[1]:.3f} px" if err else f"error after {MIN_POSES} poses"
         self.say(f"{name}: {len(result.observation.object_points)} corners, tilt {self.tilts[-1][0]:.0f}°; {fig}")
+        if note:
+            self.say(f"{name}: {note}")
         return result
 
     def undo(self) -> None:

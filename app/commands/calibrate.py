@@ -2,7 +2,8 @@
 
 slscan calibrate --from DIR --out FILE [--force]      solve a saved capture offline
 slscan calibrate --auto --poses N --out FILE          the virtual rig poses its own board
-slscan calibrate --out FILE                           the interactive wizard (operator window)
+slscan calibrate --out FILE                           the interactive wizard on the virtual rig
+slscan calibrate --config RIG --board B --out FILE    the interactive wizard on a rig (real devices)
 """
 
 from __future__ import annotations
@@ -20,7 +21,8 @@ EPILOG = """\
 examples:
   slscan calibrate --auto --poses 15 --out cal.yaml          # virtual rig, headless; keeps cal.capture/
   slscan calibrate --from cal.capture --out cal2.yaml         # solve a saved capture again
-  slscan calibrate --out cal.yaml                             # operator window (virtual rig so far)
+  slscan calibrate --out cal.yaml                             # operator window, virtual rig
+  slscan calibrate --config rig.yaml --board board.yaml --out cal.yaml   # operator window, your rig
 
 A capture folder holds board.yaml and one Gray-code frame dump per pose (pose_000/, pose_001/, ...),
 plus optional flat colour levels (response/). The calibration file is written only when the solve
@@ -54,6 +56,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="camera response exponent (default: as recorded, else 1)",
     )
     p.add_argument("--config", metavar="FILE", help="wizard: rig configuration (default config/sim.yaml)")
+    p.add_argument(
+        "--board", metavar="FILE", help="wizard on a rig: the printed board's board.yaml (or key 'board' in --config)"
+    )
     p.add_argument("--force", action="store_true", help="write the file even if the solve fails its checks")
     p.set_defaults(func=run)
 
