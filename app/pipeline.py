@@ -109,6 +109,9 @@ class PipelineStats:
     latency_ms: deque = field(default_factory=lambda: deque(maxlen=5000))
     frame_arrivals: deque = field(default_factory=lambda: deque(maxlen=120))  # ns, for a rolling rate
     result_times: deque = field(default_factory=lambda: deque(maxlen=120))
+    # CPU seconds each thread used (thread name -> s), filled as the threads end: where the time goes.
+    # "acquisition" includes the camera driver's grab (the virtual rig renders its frames there).
+    cpu_s: dict = field(default_factory=dict)
 
     def elapsed_s(self, now_ns: int | None = None) -> float:
         end = self.stopped_ns or now_ns or time.monotonic_ns()
@@ -225,6 +228,7 @@ class LivePipeline:
     # -- acquisition -----------------------------------------------------------------------
     def _acquire(self) -> None:
         loop = None
+        cpu0 = time.thread_time()
         try:
             loop = self.make_loop()
             self.loop = loop
@@ -265,6 +269,9 @@ class LivePipeline:
                     loop.close()
                 except Exception as exc:
                     self.error = self.error or f"closing the devices failed: {exc}"
+                if loop.projector_cpu_s:
+                    self.stats.cpu_s["projector"] = loop.projector_cpu_s
+            self.stats.cpu_s["acquisition"] = time.thread_time() - cpu0
             self._ready.set()
             self._acq_done.set()
             with self._cv:
@@ -285,6 +292,13 @@ class LivePipeline:
         # Capture first, then the recorder, then decoding: a late depth map is only stale, a frame
         # the capture thread misses is gone (and breaks two pairs).
         lower_thread_priority(2)
+        cpu0 = time.thread_time()
+        try:
+            self._decode_loop()
+        finally:
+            self.stats.cpu_s[threading.current_thread().name] = time.thread_time() - cpu0
+
+    def _decode_loop(self) -> None:
         while True:
             with self._cv:
                 while not self._sets and not self._acq_done.is_set() and not self._stop.is_set():
@@ -355,6 +369,7 @@ class LivePipeline:
             "stale_results": st.stale_results,
             "recorded": st.recorded,
             "capture": cap.as_dict(),
+            "cpu_ms_per_frame": {k: 1e3 * v / max(cap.frames, 1) for k, v in sorted(st.cpu_s.items())},
             "elapsed_s": elapsed,
         }
 

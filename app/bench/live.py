@@ -9,6 +9,10 @@ Three measurements, each a table row:
   showed (its ground truth). Target: 0 mispaired.
 - record: the capture loop feeding the recorder (PNG level 0 and 1) for N frames. Target: every
   tagged frame written, none lost.
+- view images: the operator view's image work per shown result at 640x480 (stripe and depth
+  panels, the 3D point view), without a window. Target for the point view: well under 2 ms.
+The live row's notes give the CPU each thread used per camera frame: where the time outside
+decode + triangulate goes (the acquisition thread includes the virtual camera's rendering).
 """
 
 from __future__ import annotations
@@ -69,6 +73,7 @@ def _live_row(frames: int, workers: int) -> dict:
     pipe.start()
     pipe.wait()
     fig = pipe.figures()
+    cpu = ", ".join(f"{k} {v:.2f}" for k, v in fig["cpu_ms_per_frame"].items())
     return {
         "run": f"live, {workers} decode thread(s)",
         "frames": fig["frames"],
@@ -83,7 +88,47 @@ def _live_row(frames: int, workers: int) -> dict:
         "mispaired": mispaired,
         "stale_sets": fig["stale_sets"],
         "lost": 0,
-        "error": pipe.error or "",
+        "error": (pipe.error + "; " if pipe.error else "")
+        + f"CPU ms per frame by thread: {cpu} (acquisition includes the virtual camera's rendering)",
+    }
+
+
+def _view_row(repeats: int = 30) -> dict:
+    """The operator view's image work per shown result at 640x480, without a window (pure functions)."""
+    from app.commands.live import build_session
+    from app.pipeline import LivePipeline
+    from app.view import PointPanel, depth_panel, stripe_panel
+
+    session = build_session(None)
+    processor = session.processor()
+    pipe = LivePipeline(lambda: session.make_loop(timeout_s=3.0), processor, max_frames=20)
+    pipe.start()
+    pipe.wait()
+    res = pipe.latest
+    if res is None:
+        return {"run": "view images", "error": pipe.error or pipe.decode_error or "no depth map"}
+    tri = processor.triangulator
+    panel = PointPanel(tri.ray, session.calibration.camera_matrix, tri.depth_range_mm)
+    panel.turn(20.0, 10.0)
+
+    def median_ms(fn) -> float:
+        times = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            fn()
+            times.append((time.perf_counter() - t0) * 1e3)
+        return float(np.median(times))
+
+    stripes = median_ms(lambda: stripe_panel(res.stripes))
+    depth = median_ms(lambda: depth_panel(res.depth, tri.depth_range_mm))
+    points = median_ms(lambda: panel.render(res))
+    n_points = int((res.depth[:: panel.step, :: panel.step] > 0).sum())
+    return {
+        "run": "view images, 640x480",
+        "frames": "",
+        "error": f"per result: stripes {stripes:.2f} ms, depth {depth:.2f} ms, 3D points {points:.2f} ms "
+        f"({n_points} points, every {panel.step}th pixel, {panel.size[0]}x{panel.size[1]} render); "
+        f"total {stripes + depth + points:.2f} ms",
     }
 
 
@@ -170,7 +215,7 @@ def _record_row(frames: int, png_level: int) -> dict:
 
 def run(args: argparse.Namespace) -> list[dict]:
     frames = getattr(args, "live_frames", 600)
-    rows = [_live_row(frames, getattr(args, "live_workers", 1))]
+    rows = [_live_row(frames, getattr(args, "live_workers", 1)), _view_row()]
     rows.append(_pairing_row(getattr(args, "live_pairing_frames", 10_000)))
     for level in (0, 1):
         rows.append(_record_row(frames, level))
