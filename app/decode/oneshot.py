@@ -18,6 +18,7 @@ import numpy as np
 
 from app.decode import kernels
 from app.decode.colour import linearisation, unmixing_matrix
+from app.decode.mirror import columns_run_backwards, mirror_back, mirror_image, mirror_range
 from app.decode.stripemap import StripeMap
 from app.decode.windows import LabelParams, WindowSpec, label, window_lookup
 from app.errors import InputError
@@ -69,7 +70,9 @@ class OneShotDecoder:
         self.params = params or OneShotParams()
         self.spec, self.rows = one_shot_spec(pattern_params, proj_width)
         self.unmix = unmixing_matrix(color_mixing)
-        self.column_range = column_range
+        # a rig whose columns run right to left decodes the mirrored image (app/decode/mirror.py)
+        self.mirrored = columns_run_backwards(column_range)
+        self.column_range = mirror_range(column_range) if self.mirrored else column_range
         self.camera_gamma = camera_gamma
 
     def classify(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -87,5 +90,8 @@ class OneShotDecoder:
         return code, feat
 
     def decode(self, image: np.ndarray) -> StripeMap:
+        if self.mirrored:
+            image = mirror_image(image)
         code, feat = self.classify(image)
-        return label(code, feat, self.spec, self.params.label, self.column_range)
+        sm = label(code, feat, self.spec, self.params.label, self.column_range)
+        return mirror_back(sm) if self.mirrored else sm

@@ -16,6 +16,7 @@ import numpy as np
 
 from app.decode import kernels
 from app.decode.colour import channel_rows, linearisation, unmixing_matrix
+from app.decode.mirror import columns_run_backwards, mirror_back, mirror_image, mirror_range
 from app.decode.stripemap import StripeMap
 from app.decode.windows import EMPTY_RANGE, LabelParams, WindowSpec, label, window_lookup
 from app.errors import InputError
@@ -73,7 +74,9 @@ class TwoShotDecoder:
         self.sequence = tuple(int(v) for v in pattern_params["sequence"])
         self.channels = str(pattern_params["channels"])
         self.unmix = channel_rows(unmixing_matrix(color_mixing), self.channels)
-        self.column_range = column_range
+        # a rig whose columns run right to left decodes the mirrored image (app/decode/mirror.py)
+        self.mirrored = columns_run_backwards(column_range)
+        self.column_range = mirror_range(column_range) if self.mirrored else column_range
         self.camera_gamma = camera_gamma
         self.camera_response = camera_response
         self._luts: dict[int, tuple[np.ndarray, np.ndarray]] = {}
@@ -127,6 +130,11 @@ class TwoShotDecoder:
         """frame1 saw pattern 0 and frame2 pattern 1; reversed_order=True if they are given the other way."""
         if reversed_order:
             frame1, frame2 = frame2, frame1
+        if self.mirrored:
+            return mirror_back(self._decode(mirror_image(frame1), mirror_image(frame2)))
+        return self._decode(frame1, frame2)
+
+    def _decode(self, frame1: np.ndarray, frame2: np.ndarray) -> StripeMap:
         p = self.params
         seg = p.segmentation
         if seg not in ("both", "events", "runs"):

@@ -25,9 +25,13 @@ def make_calibration(
     cam_dist=None,
     proj_dist=None,
     mixing=None,
+    roll_deg=0.0,
 ) -> Calibration:
     R = cv2.Rodrigues(np.array([0.0, np.radians(yaw_deg), 0.0]))[0]
     T = np.array([-baseline, 0.0, 0.0])
+    if roll_deg:  # the projector turned about its own optical axis (180: mounted upside down)
+        roll = cv2.Rodrigues(np.array([0.0, 0.0, np.radians(roll_deg)]))[0]
+        R, T = roll @ R, roll @ T
     return Calibration(
         camera_size=cam,
         camera_matrix=[[fc, 0, (cam[0] - 1) / 2], [0, fc, (cam[1] - 1) / 2], [0, 0, 1]],
