@@ -918,7 +918,7 @@ def twoshot_rows(
     smooth,
     tol,
     min_support,
-    do_runs,
+    mode,
     col_e,
     chain_e,
     col_r,
@@ -933,7 +933,8 @@ def twoshot_rows(
     full-image intermediates or extra passes: chains are row segments, so a chain of row y - 1 has all
     its vertical votes once row y is labelled. The merged map is written into col_e/chain_e and conf;
     a value filled from the runs map gets chain id (runs chain + cap). tol <= 0 skips the vertical check.
-    do_runs=False: the zero-crossing stripes alone ("events").
+    mode: 0 = the zero-crossing stripes alone ("events"), 1 = the pixel runs alone ("runs", into col_e/chain_e),
+    2 = both merged ("both"); col_r/chain_r are only used by mode 2.
     Returns (events chains, runs chains, events dropped, runs dropped, filled, clashes).
     """
     H, W = col_e.shape
@@ -966,12 +967,15 @@ def twoshot_rows(
     stats = np.zeros(4, np.int64)  # dropped events, dropped runs, filled, clashes
     for y in range(H):
         _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, code, feat, noise)
-        nr = _event_runs(feat, noise, 0, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right)
+        if mode == 1:
+            nr = _pixel_runs(code, feat, wts, link_ok, 0, gap_max, rs, re, rc, link, edge, left, right)
+        else:
+            nr = _event_runs(feat, noise, 0, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right)
         n_e = _label_row(
             y, nr, rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, colrow, table, A, k, period, sw,
             n_copies, proj_w, lo, hi, use_range, edges_mode, min_frac, smooth, sm, votes, col_e, chain_e, n_e,
         )  # fmt: skip
-        if do_runs:
+        if mode == 2:
             nr = _pixel_runs(code, feat, wts, link_ok, 0, gap_max, rs, re, rc, link, edge, left, right)
             n_r = _label_row(
                 y, nr, rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, colrow, table, A, k, period, sw,
@@ -981,7 +985,8 @@ def twoshot_rows(
         first_r[y + 1] = n_r
         if check:
             _row_votes(col_e, chain_e, y, tol, agree_e, dis_e, npx_e)
-            _row_votes(col_r, chain_r, y, tol, agree_r, dis_r, npx_r)
+            if mode == 2:
+                _row_votes(col_r, chain_r, y, tol, agree_r, dis_r, npx_r)
         if y > 0:
             _finish_row(y - 1, col_e, chain_e, col_r, chain_r, conf, first_e, first_r, agree_e, dis_e, npx_e,
                         agree_r, dis_r, npx_r, check, min_support, cap, stats)  # fmt: skip

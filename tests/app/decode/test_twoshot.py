@@ -123,14 +123,21 @@ def test_crosstalk_is_unmixed_on_a_blue_surface():
 
 
 def test_fused_path_equals_the_two_labellings_merged(scene):
-    # the default "both" path runs fused row by row; it must give exactly what the separate steps give
-    _, _, f1, f2, _, _, dec = scene
+    # every segmentation runs fused row by row; it must give exactly what the separate steps give
+    cal, ps, f1, f2, _, tri, _ = scene
+    dec = TwoShotDecoder(ps.params, cal.projector_size[0], column_range=tri.column_range)
+    dec.params = dataclasses.replace(dec.params, segmentation="both")
     code, feat, thr = dec.classify(f1, f2)
     lp = dec.params.label
     a = label(code, feat, dec.spec, dataclasses.replace(lp, events=True), dec.column_range, thr)
     b = label(code, feat, dec.spec, dataclasses.replace(lp, events=False), dec.column_range, thr)
+    fused_runs = dataclasses.replace(dec.params, segmentation="runs")
     merge_maps(a, b)
     fused = dec.decode(f1, f2)
     np.testing.assert_array_equal(fused.column, a.column)
     np.testing.assert_array_equal(fused.confidence, a.confidence)
     assert fused.info["filled"] == a.info["filled"] and fused.info["clashes"] == a.info["clashes"]
+    dec.params = fused_runs
+    runs = dec.decode(f1, f2)
+    np.testing.assert_array_equal(runs.column, b.column)
+    assert runs.info == {"chains": b.info["chains"], "chains_dropped": b.info["chains_dropped"]}
