@@ -959,6 +959,8 @@ def twoshot_rows(
     agree_r = np.zeros(cap, np.int32)
     dis_r = np.zeros(cap, np.int32)
     npx_r = np.zeros(cap, np.int32)
+    span_e = np.zeros((cap, 2), np.int32)
+    span_r = np.zeros((cap, 2), np.int32)
     first_e = np.zeros(H + 1, np.int64)  # chains of row y are first_e[y] .. first_e[y + 1] - 1
     first_r = np.zeros(H + 1, np.int64)
     check = tol > 0
@@ -984,15 +986,18 @@ def twoshot_rows(
         first_e[y + 1] = n_e
         first_r[y + 1] = n_r
         if check:
-            _row_votes(col_e, chain_e, y, tol, agree_e, dis_e, npx_e)
+            _row_votes(col_e, chain_e, y, tol, agree_e, dis_e, npx_e, span_e)
             if mode == 2:
-                _row_votes(col_r, chain_r, y, tol, agree_r, dis_r, npx_r)
-        if y > 0:
-            _finish_row(y - 1, col_e, chain_e, col_r, chain_r, conf, first_e, first_r, agree_e, dis_e, npx_e,
-                        agree_r, dis_r, npx_r, check, min_support, cap, stats)  # fmt: skip
-    if H > 0:
-        _finish_row(H - 1, col_e, chain_e, col_r, chain_r, conf, first_e, first_r, agree_e, dis_e, npx_e,
-                    agree_r, dis_r, npx_r, check, min_support, cap, stats)  # fmt: skip
+                _row_votes(col_r, chain_r, y, tol, agree_r, dis_r, npx_r, span_r)
+        for yy in range(y - 1, y + 1 if y == H - 1 else y):
+            if yy < 0:
+                continue
+            if mode == 2:
+                _finish_row(yy, col_e, chain_e, col_r, chain_r, conf, first_e, first_r, agree_e, dis_e, npx_e,
+                            agree_r, dis_r, npx_r, check, min_support, cap, stats)  # fmt: skip
+            elif check:
+                # one map: only the dropped chains' pixels change (conf is set by the caller)
+                stats[0] += _drop_chains(yy, col_e, chain_e, first_e, agree_e, dis_e, npx_e, span_e, min_support)
     return n_e, n_r, stats[0], stats[1], stats[2], stats[3]
 
 
@@ -1018,14 +1023,18 @@ def _row_scratch(n, W, n_copies):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _row_votes(col, chain, y, tol, agree, disagree, npx):
-    """Count row y's pixels per chain, and its agreement with row y - 1 for the chains of both rows."""
+def _row_votes(col, chain, y, tol, agree, disagree, npx, span):
+    """Count row y's pixels per chain, and its agreement with row y - 1 for the chains of both rows.
+    span[c] = (first, last) pixel of chain c."""
     W = col.shape[1]
     for x in range(W):
         c = chain[y, x]
         if c < 0:
             continue
+        if npx[c] == 0:
+            span[c, 0] = x
         npx[c] += 1
+        span[c, 1] = x
         if y == 0:
             continue
         cu = chain[y - 1, x]
@@ -1037,6 +1046,20 @@ def _row_votes(col, chain, y, tol, agree, disagree, npx):
         else:
             disagree[c] += 1
             disagree[cu] += 1
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _drop_chains(y, col, chain, first, agree, disagree, npx, span, min_support):
+    """vertical_check's verdict on the chains of row y, which have all their votes; returns how many it dropped."""
+    dropped = 0
+    for c in range(first[y], first[y + 1]):
+        if disagree[c] >= agree[c] or agree[c] < min_support * npx[c]:
+            dropped += 1
+            for x in range(span[c, 0], span[c, 1] + 1):
+                if chain[y, x] == c:
+                    col[y, x] = np.nan
+                    chain[y, x] = -1
+    return dropped
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
