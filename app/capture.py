@@ -449,13 +449,17 @@ class CaptureLoop:
         The counter is polled every millisecond, but only from 3/4 of a period after the last
         move: ~4 reads per frame instead of ~16 (measured: the thread's CPU 0.85 -> 0.2 ms a frame).
         """
-        quiet_s = 0.75 * self.period_ns / 1e9
+        quiet_ns = int(0.75 * self.period_ns)
         cpu0 = time.thread_time()
         try:
             self._show_triggered()
-            while not self._proj_stop.wait(quiet_s):
+            moved_ns = time.monotonic_ns()
+            # The quiet time counts from when the move was seen, not from the end of the show:
+            # a slow show (a window flip, ~6 ms on Xvfb) must not push the next poll past a tick.
+            while not self._proj_stop.wait(max(0, moved_ns + quiet_ns - time.monotonic_ns()) / 1e9):
                 while not self._proj_stop.is_set() and self._read_counter() == self._count:
                     time.sleep(0.001)
+                moved_ns = time.monotonic_ns()
                 if not self._proj_stop.is_set():
                     self._show_triggered()
         except BaseException as exc:  # handed to the acquisition thread at its next step

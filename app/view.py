@@ -384,20 +384,24 @@ class LiveView:
         try:
             # The view's own loop (not pyglet.app.run, which would redraw and flip the projector
             # window too): projector calls, scheduled functions, window events, then a redraw.
+            # With a projector window the redraw follows a flip: it then has most of a refresh
+            # period before the next show is due, and never makes a flip late.
             while not self.quit:
-                wait = min(0.005, max(0.0, next_draw - time.monotonic()))
                 if self.projector is not None:
-                    self.projector.serve(wait)
-                elif wait:
-                    time.sleep(wait)
-                pyglet.clock.tick()
+                    flipped = self.projector.serve(0.005) > 0
+                else:
+                    flipped = False
+                    time.sleep(min(0.005, max(0.0, next_draw - time.monotonic())))
                 win.dispatch_events()
                 if self.quit or not self.pipe.running:
                     break
-                if time.monotonic() >= next_draw:
-                    next_draw = max(next_draw + REDRAW_S, time.monotonic() - REDRAW_S)
-                    tick()
-                    draw()
+                now = time.monotonic()
+                if now < next_draw or (self.projector is not None and not flipped and now < next_draw + 0.1):
+                    continue
+                next_draw = max(next_draw + REDRAW_S, now - REDRAW_S)
+                pyglet.clock.tick()
+                tick()
+                draw()
         except KeyboardInterrupt:
             pass
         finally:

@@ -6,6 +6,11 @@ live on the main thread; the capture loop's projector calls are served there bet
 Checked: what the X server shows is exactly the pattern the pipeline's flip log says was shown
 at that flip, the view window is open beside it, and the session stops cleanly on q in the view
 and when the projector window is closed (a WM_DELETE_WINDOW message, what a window manager sends).
+
+With the trigger box: the Python emulator of the box on a real pty, opened by the serial driver,
+paces the loop; the projector's vsync is wired to the box (source ext) and to the virtual
+camera's trigger (each edge steps the rig's clock and fires the box together, as
+tests/reliability/test_faults.py's VsyncBridge does), so the camera's frames carry the box's count.
 """
 
 from __future__ import annotations
@@ -47,6 +52,33 @@ SCRIPT = textwrap.dedent(
 
     how = sys.argv[2]
     session = build_session(sys.argv[1])
+    if how == "trigger-box":
+        import dataclasses, threading
+        from drivers.trigger.emulator import TriggerBoxEmulator
+        from drivers.trigger.serial_box import SerialTriggerBox
+
+        emu = TriggerBoxEmulator()
+        sim_devices = session.make_devices
+
+        def vsync_wire(sim_trigger, stop):
+            bench = sim_trigger.bench
+            sim_trigger.start(60)  # the rig's stepped clock: ticks only come from the vsync edges
+            while not stop.wait(1 / 60):
+                with emu._lock:
+                    if emu.running and emu.active == "EXT":
+                        sim_trigger.step()
+                        emu.vsync()
+
+        def make_devices():
+            cam, proj, sim_trigger = sim_devices()
+            stop = threading.Event()
+            threading.Thread(target=vsync_wire, args=(sim_trigger, stop), daemon=True).start()
+            box = SerialTriggerBox(emu.port, cycle=2, source="ext", timeout_s=1.0)
+            close = box.close
+            box.close = lambda: (stop.set(), close())
+            return cam, proj, box
+
+        session = dataclasses.replace(session, make_devices=make_devices)
     view = LiveView(session, argparse.Namespace(timeout=3.0, workers=1, frames=None, png_level=0))
     conn = xdisplay.Display()
     root = conn.screen().root
@@ -94,14 +126,17 @@ SCRIPT = textwrap.dedent(
     conn.sync()
     print("projector window left", "slscan projector" in windows(), flush=True)
     print("frames", view.pipe.capture.frames, "depth maps", view.pipe.stats.decoded, flush=True)
+    print("trigger", type(view.pipe.loop.trigger).__name__, view.pipe.capture.refused, flush=True)
     raise SystemExit(code)
     """
 )
 
 
-@pytest.mark.parametrize("how", ["view-q", "close-projector"])
+@pytest.mark.parametrize("how", ["view-q", "close-projector", "trigger-box"])
 def test_projector_window_and_view_in_one_process(tmp_path, xserver, how):
-    (tmp_path / "rig.yaml").write_text(RIG)
+    (tmp_path / "rig.yaml").write_text(
+        RIG.replace("scene: face", "scene: face\n  stepped: true") if how == "trigger-box" else RIG
+    )
     env = {**os.environ, "DISPLAY": xserver}
     r = subprocess.run(
         [sys.executable, "-c", SCRIPT, str(tmp_path / "rig.yaml"), how],
@@ -125,4 +160,6 @@ def test_projector_window_and_view_in_one_process(tmp_path, xserver, how):
     assert int(frames[1]) > 20 and int(frames[4]) >= 1
     if how == "close-projector":
         assert "slscan live: stopped cleanly: the projector window was closed" in r.stdout
+    trigger = next(line.split() for line in lines if line.startswith("trigger "))
+    assert trigger[1] == ("SerialTriggerBox" if how == "trigger-box" else "SimTrigger"), trigger
     assert "Traceback" not in r.stderr
