@@ -378,7 +378,11 @@ class LiveView:
             self.redraw_ms.append((time.perf_counter() - t0) * 1e3)
             del self.redraw_ms[:-1000], self.points_ms[:-1000]
 
-        self.pipe = self._start_pipeline()
+        try:
+            self.pipe = self._start_pipeline()
+        except BaseException:
+            win.close()  # the devices did not open: their error is the message
+            raise
         next_draw = time.monotonic()
         cpu0 = time.thread_time()
         try:

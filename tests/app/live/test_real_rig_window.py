@@ -163,3 +163,22 @@ def test_projector_window_and_view_in_one_process(tmp_path, xserver, how):
     trigger = next(line.split() for line in lines if line.startswith("trigger "))
     assert trigger[1] == ("SerialTriggerBox" if how == "trigger-box" else "SimTrigger"), trigger
     assert "Traceback" not in r.stderr
+
+
+def test_window_size_not_the_virtual_projectors_is_one_line(run_cli, tmp_path, xserver):
+    (tmp_path / "rig.yaml").write_text(RIG.replace("projector_size: [1024, 768]", "projector_size: [800, 600]"))
+    r = run_cli("live", "--config", tmp_path / "rig.yaml", env={**os.environ, "DISPLAY": xserver}, cwd=tmp_path)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert r.stderr.strip().splitlines() == [
+        f"slscan live: error: projector pyglet:0 is 1024x768 but {tmp_path / 'rig.yaml'} key 'sim.projector_size' "
+        "says 800x600"
+    ]
+
+
+def test_virtual_camera_with_another_trigger_is_refused(run_cli, tmp_path):
+    (tmp_path / "rig.yaml").write_text(
+        RIG.replace("trigger: {driver: sim}", "trigger: {driver: serial, port: /dev/null}")
+    )
+    r = run_cli("live", "--headless", "--config", tmp_path / "rig.yaml", cwd=tmp_path)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert "key 'rig': the virtual rig's camera and trigger go together" in r.stderr
