@@ -30,7 +30,7 @@ from app.capture import CaptureLoop
 from app.errors import DeviceError
 from drivers.base import Camera, Projector, Trigger
 
-MAX_TAKES = 4  # takes tried before a pose is given up (the operator retakes it)
+MAX_TAKES = 6  # takes tried before a pose is given up (the operator retakes it): ~5 s at 60 Hz
 IMPOSSIBLE_FRACTION = 0.01  # of lit pixels equal in a bit frame and its inverse: above, a frame saw another pattern
 WHITE_RATIO = 0.8  # white - black against a bit + its inverse - 2 black (1 in a right take)
 

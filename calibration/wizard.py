@@ -197,6 +197,7 @@ class WizardWindow:
         self.verdict.extend(report.response_text(self.response).splitlines())
 
     def on_draw(self) -> None:
+        self.win.switch_to()  # a projector window of the same process may hold the GL context
         self.win.clear()
         self.panes[0].blit(0, 0)
         self.panes[1].blit(PANE[0], 0)

@@ -40,12 +40,16 @@ rig:
 
 @pytest.fixture
 def sim_rig(tmp_path):
-    """open(seed, trigger=True, rate=60) -> (source, bench): a rig YAML of `sim` devices, opened as a rig."""
+    """open(seed, trigger=True, rate=30) -> (source, bench): a rig YAML of `sim` devices, opened as a rig.
+
+    30 Hz: the simulated camera renders each frame when grabbed, and on this shared 2-core machine
+    60 Hz leaves the projector thread too little time to flip before every tick.
+    """
     from drivers.sim.devices import forget_shared_benches
 
     opened: list[RigBoardSource] = []
 
-    def open_rig(seed: int, trigger: bool = True, rate: int = 60) -> tuple[RigBoardSource, object]:
+    def open_rig(seed: int, trigger: bool = True, rate: int = 30) -> tuple[RigBoardSource, object]:
         path = tmp_path / f"rig{seed}.yaml"
         path.write_text(RIG_YAML.format(seed=seed, trigger="  trigger: *sim\n" if trigger else "", rate=rate))
         from drivers.sim.devices import shared_bench
@@ -117,17 +121,18 @@ def test_rig_capture_solves_to_the_targets(sim_rig, tmp_path):
 def test_a_faulty_frame_makes_the_pose_be_retaken(sim_rig, kind):
     src, _ = sim_rig(seed=200 + ["drop", "swap", "late_flip", "duplicate"].index(kind))
     n = len(src.patterns)
-    # ticks restart with every trigger start: one fault in each of the first three pattern cycles
-    src.camera.inject(kind, at=[5, n + 5, 2 * n + 5])
+    # ticks restart with every trigger start: one fault in each of the first two pattern cycles
+    src.camera.inject(kind, at=[5, n + 5])
     take = src.capture()
     assert tags_true(src, take)  # never saved wrong
     assert take.refused and "retaken" in take.note()
     if kind != "duplicate":  # a frame received twice is dropped alone; the others spoil their cycle
-        assert take.frame_ids[0] > 2 * n + 5
+        assert take.frame_ids[0] > n + 5
     if kind == "late_flip":  # no counter saw it: the pixels did
         assert any("saw another pattern" in r for r in take.refused)
 
 
+@pytest.mark.slow
 def test_a_fault_on_every_cycle_gives_up_with_a_reason(sim_rig):
     src, bench = sim_rig(seed=300)
     src.camera.inject("drop", probability=0.2)
