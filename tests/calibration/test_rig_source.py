@@ -172,3 +172,14 @@ def test_gray_code_pixel_check_catches_a_late_frame(board_rig):
     bad = list(frames)
     bad[0] = frames[-1]  # a late white: it still shows the last pattern of the cycle before
     assert "white frame" in check_graycode(bad, meta)
+
+
+def test_a_rig_without_a_board_description_is_one_line(run_cli, tmp_path):
+    rig = tmp_path / "rig.yaml"
+    rig.write_text(RIG_YAML.format(seed=1, trigger="", rate=30))
+    proc = run_cli("calibrate", "--config", rig, "--out", tmp_path / "c.yaml")
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1
+    assert str(rig) in proc.stderr and "--board" in proc.stderr
+    proc = run_cli("calibrate", "--config", rig, "--board", tmp_path / "nope.yaml", "--out", tmp_path / "c.yaml")
+    assert proc.returncode == 2 and "nope.yaml" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
