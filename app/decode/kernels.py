@@ -408,7 +408,6 @@ def _label_row(
     lab,
     nx,
     nv,
-    colrow,
     table,
     A,
     k,
@@ -537,34 +536,31 @@ def _label_row(
             xb = W - 1
         if xb < xa:
             continue
-        npx = xb - xa + 1
-        seg = 0
-        slope = (nv[1] - nv[0]) / (nx[1] - nx[0])
-        span = period * sw
-        inv_span = 1.0 / span  # a multiply, not a division per pixel (exact for the usual power-of-2 span)
-        if use_range:
-            for q in range(n_copies):
-                votes[q] = 0
-        for xx in range(xa, xb + 1):
-            if seg + 2 < nn and xx > nx[seg + 1]:
-                while seg + 2 < nn and xx > nx[seg + 1]:
-                    seg += 1
-                slope = (nv[seg + 1] - nv[seg]) / (nx[seg + 1] - nx[seg])
-            v = nv[seg] + (xx - nx[seg]) * slope
-            colrow[xx] = v
-            if use_range:
-                # each pixel votes for the copy that puts its column inside its depth-range interval
-                q = int(np.ceil((lo[y, xx] - v) * inv_span))
-                if q < 0:
-                    q = 0
-                while q < n_copies:
-                    vq = v + q * span
-                    if vq > hi[y, xx] or vq > proj_w - 0.5:
-                        break
-                    votes[q] += 1
-                    q += 1
         shift = 0.0
         if use_range:
+            # each node (stripe edge or centre) votes for the copies that put its column inside the
+            # depth-range interval of its pixel; the chain takes the clear winner, else no value
+            span = period * sw
+            inv_span = 1.0 / span  # a multiply, not a division (exact for the usual power-of-2 span)
+            pw = proj_w - 0.5
+            for q in range(n_copies):
+                votes[q] = 0
+            for r in range(nn):
+                xr = int(nx[r] + 0.5)
+                if xr < 0:
+                    xr = 0
+                if xr > W - 1:
+                    xr = W - 1
+                v = nv[r]
+                hv = hi[y, xr]
+                if hv > pw:
+                    hv = pw
+                q = int(np.ceil((lo[y, xr] - v) * inv_span))
+                if q < 0:
+                    q = 0
+                while q < n_copies and v + q * span <= hv:
+                    votes[q] += 1
+                    q += 1
             best_q = -1
             best_n = 0
             second_n = 0
@@ -576,16 +572,28 @@ def _label_row(
                     best_q = q
                 elif cnt > second_n:
                     second_n = cnt
-            if best_q < 0 or best_n < min_frac * npx or second_n > 0.5 * best_n:
+            if best_q < 0 or best_n < min_frac * nn or second_n > 0.5 * best_n:
                 continue
-            shift = best_q * period * sw
+            shift = best_q * span
         # pixels of the end stripes lie within one stripe of the outer edges; beyond is a guess
         lo_v = nv[0] - END_EXT * sw if edges_mode else nv[0] - 0.5 * sw
         hi_v = nv[nn - 1] + END_EXT * sw if edges_mode else nv[nn - 1] + 0.5 * sw
+        # per-node slopes once per chain (sm is free after smoothing): no division per pixel
+        for r in range(nn - 1):
+            sm[r] = (nv[r + 1] - nv[r]) / (nx[r + 1] - nx[r])
+        seg = 0
+        slope = sm[0]
+        x_next = nx[1] if nn > 2 else np.inf
         for xx in range(xa, xb + 1):
-            if colrow[xx] < lo_v or colrow[xx] > hi_v:
+            if xx > x_next:
+                while seg + 2 < nn and xx > nx[seg + 1]:
+                    seg += 1
+                slope = sm[seg]
+                x_next = nx[seg + 1] if seg + 2 < nn else np.inf
+            v = nv[seg] + (xx - nx[seg]) * slope
+            if v < lo_v or v > hi_v:
                 continue
-            v = colrow[xx] + shift
+            v += shift
             if use_range and (v < lo[y, xx] or v > hi[y, xx]):
                 continue
             out_col[y, xx] = v
@@ -630,7 +638,7 @@ def label_rows(
     m = feat.shape[2]
     A = link_ok.shape[0]
     n = (m + 1) * (2 * W + 8)
-    rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, votes, colrow = _row_scratch(n, W, n_copies)
+    rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, votes = _row_scratch(n, W, n_copies)
     ex = np.empty((m, n), np.float64)
     es = np.empty((m, n), np.int64)
     et = np.empty((m, n), np.int64)
@@ -656,7 +664,6 @@ def label_rows(
             lab,
             nx,
             nv,
-            colrow,
             table,
             A,
             k,
@@ -947,7 +954,7 @@ def twoshot_rows(
     feat = np.empty((1, W, m), np.float32)
     noise = np.empty((1, W, m), np.float32)
     n = (m + 1) * (2 * W + 8)
-    rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, votes, colrow = _row_scratch(n, W, n_copies)
+    rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, votes = _row_scratch(n, W, n_copies)
     ex = np.empty((m, n), np.float64)
     es = np.empty((m, n), np.int64)
     et = np.empty((m, n), np.int64)
@@ -974,13 +981,13 @@ def twoshot_rows(
         else:
             nr = _event_runs(feat, noise, 0, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right)
         n_e = _label_row(
-            y, nr, rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, colrow, table, A, k, period, sw,
+            y, nr, rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, table, A, k, period, sw,
             n_copies, proj_w, lo, hi, use_range, edges_mode, min_frac, smooth, sm, votes, col_e, chain_e, n_e,
         )  # fmt: skip
         if mode == 2:
             nr = _pixel_runs(code, feat, wts, link_ok, 0, gap_max, rs, re, rc, link, edge, left, right)
             n_r = _label_row(
-                y, nr, rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, colrow, table, A, k, period, sw,
+                y, nr, rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, table, A, k, period, sw,
                 n_copies, proj_w, lo, hi, use_range, edges_mode, min_frac, smooth, sm, votes, col_r, chain_r, n_r,
             )  # fmt: skip
         first_e[y + 1] = n_e
@@ -1018,8 +1025,7 @@ def _row_scratch(n, W, n_copies):
     nv = np.empty(n, np.float64)
     sm = np.empty(n, np.float64)
     votes = np.zeros(max(n_copies, 1), np.int64)
-    colrow = np.empty(W, np.float64)
-    return rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, votes, colrow
+    return rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, votes
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")

@@ -204,17 +204,20 @@ def _decode(dec: TwoShotDecoder, f1: np.ndarray, f2: np.ndarray, events: bool) -
             keep = (vals >= nv[0] - 0.5 * sw) & (vals <= nv[-1] + 0.5 * sw)
             shift = 0.0
             if dec.column_range is not None:
-                lo, hi = dec.column_range[0][y, xa : xb + 1], dec.column_range[1][y, xa : xb + 1]
+                # the nodes vote for the copy that puts them inside their pixel's depth-range interval
+                xn = np.clip(np.floor(nx + 0.5).astype(int), 0, W - 1)
+                lo_n, hi_n = dec.column_range[0][y, xn], dec.column_range[1][y, xn]
                 counts = []
                 for q in range(spec.n_copies):
-                    v = vals + q * P * sw
-                    counts.append(int(((v >= lo) & (v <= hi) & (v <= spec.proj_width - 0.5)).sum()))
-                order = np.argsort(counts)[::-1]
+                    v = nv + q * P * sw
+                    counts.append(int(((v >= lo_n) & (v <= hi_n) & (v <= spec.proj_width - 0.5)).sum()))
+                order = np.argsort(counts, kind="stable")[::-1]
                 best = counts[order[0]]
                 second = counts[order[1]] if len(counts) > 1 else 0
-                if best == 0 or best < lp.min_frac * len(xr) or second > 0.5 * best:
+                if best == 0 or best < lp.min_frac * len(nx) or second > 0.5 * best:
                     continue
                 shift = order[0] * P * sw
+                lo, hi = dec.column_range[0][y, xa : xb + 1], dec.column_range[1][y, xa : xb + 1]
                 v = vals + shift
                 keep &= (v >= lo) & (v <= hi)
             xs = xr[keep].astype(int)
