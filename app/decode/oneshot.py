@@ -69,6 +69,7 @@ class OneShotDecoder:
     ) -> None:
         self.params = params or OneShotParams()
         self.spec, self.rows = one_shot_spec(pattern_params, proj_width)
+        self.sequence = tuple(int(v) for v in pattern_params["sequence"])
         self.unmix = unmixing_matrix(color_mixing)
         # a rig whose columns run right to left decodes the mirrored image (app/decode/mirror.py)
         self.mirrored = columns_run_backwards(column_range)

@@ -1,13 +1,17 @@
-"""Plain numpy/Python reference of the two-shot decoder, written for reading, not speed.
+"""Plain numpy/Python reference of the colour decoders, written for reading, not speed.
 
 It follows the same specification as the compiled path (`app/decode/kernels.py` via
-`TwoShotDecoder`) step by step; the tests run both on the same frames and compare.
+`TwoShotDecoder` and `OneShotDecoder`) step by step; the tests run both on the same frames and
+compare: classification (`classify`, `classify_one_shot`) and labelling (`label_rows`: windows,
+confirmed labels, chains, sub-pixel columns, copy choice, vertical check).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from app.decode.colour import linearisation
+from app.decode.oneshot import OneShotDecoder
 from app.decode.stripemap import StripeMap
 from app.decode.twoshot import TwoShotDecoder
 from app.patterns import window_table
@@ -137,10 +141,63 @@ def decode(dec: TwoShotDecoder, f1: np.ndarray, f2: np.ndarray) -> StripeMap:
 
 
 def _decode(dec: TwoShotDecoder, f1: np.ndarray, f2: np.ndarray, events: bool) -> StripeMap:
-    spec, lp = dec.spec, dec.params.label
     code, feat, thr = classify(dec, f1, f2)
+    return label_rows(code, feat, thr, dec.spec, dec.params.label, dec.column_range, dec.sequence, events)
+
+
+def classify_one_shot(dec: OneShotDecoder, image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-pixel colour index into the pattern's colours (-1 = none) and the normalised levels (H, W, 3)."""
+    p = dec.params
+    lin, _ = linearisation(65536 if image.dtype == np.uint16 else 256, dec.camera_gamma)
+    linear = np.stack([lin[c][image[..., c]] for c in range(3)], axis=-1).astype(np.float32)
+    u = np.einsum("cj,hwj->hwc", dec.unmix.astype(np.float32), linear).astype(np.float32)
+    H, W, _ = u.shape
+    if p.use_hue:
+        v = np.maximum(u, 0)
+        total = v.sum(axis=2, keepdims=True)
+        feat = np.where(total >= p.t_abs, v / np.where(total > 0, total, 1), 0).astype(np.float32)
+    else:
+        # each unmixed primary rescaled by its own min and max over this block and its two neighbours
+        nb = -(-W // p.block)
+        pad_hi = np.full((H, nb * p.block, 3), -np.inf, np.float32)
+        pad_lo = np.full((H, nb * p.block, 3), np.inf, np.float32)
+        pad_hi[:, :W] = u
+        pad_lo[:, :W] = u
+        bmax = pad_hi.reshape(H, nb, p.block, 3).max(axis=2)
+        bmin = pad_lo.reshape(H, nb, p.block, 3).min(axis=2)
+        hi = _with_neighbours(bmax, np.maximum, -np.inf)
+        lo = _with_neighbours(bmin, np.minimum, np.inf)
+        hi, lo = hi[:, np.arange(W) // p.block], lo[:, np.arange(W) // p.block]
+        span = hi - lo
+        feat = np.where(span >= p.t_abs, (u - lo) / np.where(span > 0, span, 1), 0).astype(np.float32)
+    levels = feat[..., dec.rows]  # (H, W, N) in the pattern's colour order
+    order = np.argsort(-levels, axis=2, kind="stable")
+    v1 = np.take_along_axis(levels, order[..., :1], 2)[..., 0]
+    v2 = np.take_along_axis(levels, order[..., 1:2], 2)[..., 0] if levels.shape[2] > 1 else np.full_like(v1, -1)
+    code = np.where((v1 - v2 >= p.t_margin) & (v1 > 0), order[..., 0], -1)
+    return code, feat
+
+
+def _with_neighbours(blocks: np.ndarray, op, pad: float) -> np.ndarray:
+    """op (max or min) of each block's value and its left and right neighbours' along axis 1."""
+    edge = np.full_like(blocks[:, :1], pad)
+    return op(blocks, op(np.concatenate([edge, blocks[:, :-1]], 1), np.concatenate([blocks[:, 1:], edge], 1)))
+
+
+def label_rows(
+    code: np.ndarray,
+    feat: np.ndarray,
+    thr: np.ndarray | None,
+    spec,
+    lp,
+    column_range: tuple[np.ndarray, np.ndarray] | None,
+    sequence,
+    events: bool,
+) -> StripeMap:
+    """Stripes of each row (sign-change intervals or code runs) -> windows -> chains -> columns, then
+    the vertical check: what kernels.label_rows + vertical_check (and the fused two-shot path) do."""
     H, W, _ = feat.shape
-    table = window_table(dec.sequence, spec.k)
+    table = window_table(sequence, spec.k)
     P, k, sw = spec.period, spec.k, spec.stripe_width
     col = np.full((H, W), np.nan, np.float32)
     chain_id = np.full((H, W), -1, np.int32)
@@ -203,10 +260,10 @@ def _decode(dec: TwoShotDecoder, f1: np.ndarray, f2: np.ndarray, events: bool) -
             vals = nv[seg] + (xr - nx[seg]) * (nv[seg + 1] - nv[seg]) / (nx[seg + 1] - nx[seg])
             keep = (vals >= nv[0] - 0.5 * sw) & (vals <= nv[-1] + 0.5 * sw)
             shift = 0.0
-            if dec.column_range is not None:
+            if column_range is not None:
                 # the nodes vote for the copy that puts them inside their pixel's depth-range interval
                 xn = np.clip(np.floor(nx + 0.5).astype(int), 0, W - 1)
-                lo_n, hi_n = dec.column_range[0][y, xn], dec.column_range[1][y, xn]
+                lo_n, hi_n = column_range[0][y, xn], column_range[1][y, xn]
                 counts = []
                 for q in range(spec.n_copies):
                     v = nv + q * P * sw
@@ -217,7 +274,7 @@ def _decode(dec: TwoShotDecoder, f1: np.ndarray, f2: np.ndarray, events: bool) -
                 if best == 0 or best < lp.min_frac * len(nx) or second > 0.5 * best:
                     continue
                 shift = order[0] * P * sw
-                lo, hi = dec.column_range[0][y, xa : xb + 1], dec.column_range[1][y, xa : xb + 1]
+                lo, hi = column_range[0][y, xa : xb + 1], column_range[1][y, xa : xb + 1]
                 v = vals + shift
                 keep &= (v >= lo) & (v <= hi)
             xs = xr[keep].astype(int)
