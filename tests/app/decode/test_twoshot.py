@@ -19,7 +19,8 @@ def score(column, truth):
     v = np.isfinite(column)
     err = column - truth.column
     ok = v & truth.lit & (np.abs(np.nan_to_num(err, nan=9)) <= 0.5)
-    return ok.sum() / max(1, v.sum()), (v & truth.lit).sum() / truth.lit.sum(), float(np.sqrt(np.mean(err[ok] ** 2)))
+    rmse = float(np.sqrt(np.mean(err[ok] ** 2))) if ok.any() else float("nan")
+    return ok.sum() / max(1, v.sum()), (v & truth.lit).sum() / truth.lit.sum(), rmse
 
 
 @pytest.fixture(scope="module")
