@@ -236,6 +236,10 @@ class RigBoardSource:
         return f"validation scan of the board: {scan.points} points, plane-fit residual {scan.plane_rms_mm:.3f} mm"
 
     def close(self) -> None:
+        """Stop the live view and close every device once, even if one of them fails."""
+        if getattr(self, "_closed", False):
+            return
+        self._closed = True
         errors: list[BaseException] = []
         for action in (
             self._stop_live,
