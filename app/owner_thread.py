@@ -15,6 +15,7 @@ After `shutdown()` (the owner is leaving), further calls from other threads rais
 from __future__ import annotations
 
 import threading
+import time
 from collections import deque
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -125,3 +126,39 @@ class _Call:
         if self.error is not None:
             raise self.error
         return self.result
+
+
+def thread_bound(projector: Any) -> bool:
+    """A projector whose window must be used by the thread that opened it (pyglet: it has request_stop)."""
+    return hasattr(projector, "request_stop") and not getattr(projector, "any_thread", False)
+
+
+class HandOver:
+    """`wrap_projector` for Session.make_loop: a thread-bound projector is wrapped, owned by this thread.
+
+    The owning thread then calls `wait(s)` instead of sleeping (it serves the projector's calls
+    meanwhile) and `finish()` once the capture loop has ended.
+    """
+
+    def __init__(self) -> None:
+        self.proxy: OwnerThreadProjector | None = None
+
+    def __call__(self, projector: Any) -> Any:
+        if thread_bound(projector):
+            self.proxy = OwnerThreadProjector(projector)
+            return self.proxy
+        return projector
+
+    def wait(self, timeout_s: float) -> int:
+        """Serve projector calls for up to timeout_s (returns at the first one); sleep if there is no window."""
+        if self.proxy is None:
+            time.sleep(timeout_s)
+            return 0
+        return self.proxy.serve(timeout_s)
+
+    def finish(self) -> None:
+        """The capture loop has ended: stop serving, close the window if the loop could not."""
+        if self.proxy is not None:
+            self.proxy.shutdown()
+            self.proxy.projector.close()
+            self.proxy = None

@@ -185,17 +185,12 @@ class LiveView:
         return PointPanel(tri.ray, self.session.calibration.camera_matrix, tri.depth_range_mm)
 
     def _start_pipeline(self):
-        from app.owner_thread import OwnerThreadProjector
+        from app.owner_thread import HandOver
 
-        def hand_over(projector: Any) -> Any:
-            # A window that belongs to this thread (pyglet) is served from the view's loop.
-            if hasattr(projector, "request_stop") and not getattr(projector, "any_thread", False):
-                self.projector = OwnerThreadProjector(projector)
-                return self.projector
-            return projector
-
-        self.projector = None
+        # A window that belongs to this thread (pyglet) is served from the view's loop.
+        hand_over = HandOver()
         loop = self.session.make_loop(wrap_projector=hand_over, timeout_s=self.args.timeout)
+        self.projector = hand_over.proxy
         pipe = self.LivePipeline(
             lambda: loop,
             self.processor,

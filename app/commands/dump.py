@@ -9,6 +9,7 @@ import time
 from app.argtypes import positive_float, positive_int
 from app.dump import repair_dump
 from app.errors import InputError
+from app.owner_thread import HandOver
 from app.patterns import SCHEMES
 from app.pipeline import LivePipeline
 
@@ -65,19 +66,30 @@ def run(args: argparse.Namespace) -> int:
 
     session = build_session(args.config, scheme=args.scheme)
     recorder = open_recorder(session, args.out, args.png_level)
-    pipe = LivePipeline(lambda: session.make_loop(timeout_s=args.timeout), None, max_frames=args.frames)
+    # Devices open on this thread, which serves a projector window's calls while it waits (as `live`).
+    hand_over = HandOver()
+    try:
+        loop = session.make_loop(wrap_projector=hand_over, timeout_s=args.timeout)
+    except BaseException:
+        recorder.close()
+        raise
+    pipe = LivePipeline(lambda: loop, None, max_frames=args.frames)
     pipe.set_recorder(recorder)
     print(f"slscan dump: {session.scheme} frames from {describe(session)} -> {args.out}", file=sys.stderr)
     interrupted = False
     t0 = time.monotonic()
     try:
         pipe.start()
-        pipe.wait()
+        while pipe.running:
+            hand_over.wait(0.2)
     except KeyboardInterrupt:
         interrupted = True
     finally:
         pipe.stop()
+        while pipe.running:
+            hand_over.wait(0.01)
         pipe.join()
+        hand_over.finish()
         stats = recorder.close()
     elapsed = time.monotonic() - t0
     cap = pipe.capture

@@ -22,6 +22,7 @@ from app.argtypes import positive_float, positive_int
 from app.capture import CaptureLoop, pattern_order
 from app.config import Config, load_config
 from app.errors import DeviceError, InputError
+from app.owner_thread import HandOver
 from app.patterns import SCHEMES, PatternSet, make_patterns
 from app.pipeline import DECODE_WORKERS, WORKERS_HELP, LivePipeline, Processor, Result, status_line
 from calibration.model import Calibration
@@ -336,30 +337,37 @@ def run_headless(session: Session, args: argparse.Namespace, label: str = "live"
     out = Path(args.out) if args.out else Path(time.strftime("live-%Y%m%d-%H%M%S"))
     recorder = open_recorder(session, args.record, args.png_level) if getattr(args, "record", None) else None
     processor = session.processor()
-    pipe = LivePipeline(
-        lambda: session.make_loop(timeout_s=args.timeout),
-        processor,
-        workers=args.workers,
-        max_frames=frames,
-        recorder=recorder,
-    )
+    # The devices open on this thread: a projector window (pyglet) stays with it, and this thread
+    # serves the window's calls while it waits, so the capture loop's projector thread paces the
+    # flips by the trigger, never by the camera's grab (app/owner_thread.py).
+    hand_over = HandOver()
+    try:
+        loop = session.make_loop(wrap_projector=hand_over, timeout_s=args.timeout)
+    except BaseException:
+        if recorder is not None:
+            recorder.close()
+        raise
+    pipe = LivePipeline(lambda: loop, processor, workers=args.workers, max_frames=frames, recorder=recorder)
     count = "every frame" if frames >= 10**12 else f"{frames} frames"
     print(f"slscan {label}: {session.scheme} on {describe(session)}, {count}", file=sys.stderr)
     interrupted = False
     pipe.start()
     try:
-        last = time.monotonic()
-        while pipe.running:
-            time.sleep(0.1)
-            if time.monotonic() - last >= 1.0 and sys.stderr.isatty():
-                last = time.monotonic()
-                print("\r" + status_line(pipe.figures()), end="", file=sys.stderr, flush=True)
-        pipe.join()
-    except KeyboardInterrupt:
-        interrupted = True
-        pipe.stop()
+        try:
+            last = time.monotonic()
+            while pipe.running:
+                hand_over.wait(0.1)
+                if time.monotonic() - last >= 1.0 and sys.stderr.isatty():
+                    last = time.monotonic()
+                    print("\r" + status_line(pipe.figures()), end="", file=sys.stderr, flush=True)
+        except KeyboardInterrupt:
+            interrupted = True
+            pipe.stop()
+        while pipe.running:  # the loop closes the window through this thread
+            hand_over.wait(0.01)
         pipe.join()
     finally:
+        hand_over.finish()
         if recorder is not None:
             recorder.close()
     if sys.stderr.isatty():
