@@ -92,6 +92,13 @@ class SimBoardSource:
                     self._spare_view = (image, det) if image is not None else None
                 self._spare_cond.notify_all()
 
+    def wait_prefetched(self, timeout_s: float = 60.0) -> bool:
+        """Block until the next suggestion is prefetched (tests, benches); False on timeout."""
+        with self._spare_cond:
+            return self._spare_cond.wait_for(
+                lambda: self._spare_at == self._want and self._spare_view is not None, timeout_s
+            )
+
     @property
     def camera_size(self) -> tuple[int, int]:
         return self.rig.camera_size
