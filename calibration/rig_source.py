@@ -73,11 +73,13 @@ class RigBoardSource:
         devices: tuple[object, object, object | None] | None = None,
     ) -> None:
         self.cfg, self.board = cfg, board
+        self.rate_hz = float(cfg.get("capture.rate_hz", 60, types=(int, float)))  # type: ignore[arg-type]
+        if not 1 <= self.rate_hz <= 250:
+            raise InputError(f"{cfg.path}: key 'capture.rate_hz' must be 1..250, found {self.rate_hz:g}")
         self.camera, self.projector, self.trigger = devices if devices is not None else open_devices(cfg)
         self.name = f"camera {self.camera.name}, projector {self.projector.name}" + (
             f", trigger {self.trigger.name}" if self.trigger is not None else ", no trigger"
         )
-        self.rate_hz = float(cfg.get("capture.rate_hz", 60, types=(int, float)))  # type: ignore[arg-type]
         rng = cfg.get("depth_range_mm", None)
         self.depth_range_mm = tuple(rng) if isinstance(rng, list) and len(rng) == 2 else DEFAULT_DEPTH_RANGE_MM
         self.settle, self.preview_hz, self.timeout_s = settle, min(preview_hz, self.rate_hz), timeout_s
