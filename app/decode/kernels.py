@@ -189,23 +189,26 @@ def _pixel_runs(code, feat, wts, link_ok, y, gap_max, rs, re, rc, link, edge, le
     """Runs of equal code along row y; link and sub-pixel edge (zero crossing) between neighbours."""
     W = code.shape[1]
     C = feat.shape[2]
-    nr = 0
-    x = 0
-    while x < W:
+    # every code change opens a candidate run at rs[nr] without a branch (runs change every ~2 px, so
+    # a branch per change is mispredicted half the time); runs of no code (-1) are squeezed out below
+    nb = 0
+    prev = -2
+    for x in range(W):
         c = code[y, x]
-        if c < 0:
-            x += 1
-            continue
-        s = x
-        while x + 1 < W and code[y, x + 1] == c:
-            x += 1
-        rs[nr] = s
-        re[nr] = x
+        rs[nb] = x
+        rc[nb] = c
+        nb += c != prev
+        prev = c
+    nr = 0
+    for j in range(nb):
+        c = rc[j]
+        rs[nr] = rs[j]
         rc[nr] = c
-        left[nr] = s - 0.5
-        right[nr] = x + 0.5
-        nr += 1
-        x += 1
+        re[nr] = (rs[j + 1] if j + 1 < nb else W) - 1
+        nr += c >= 0
+    for j in range(nr):
+        left[j] = rs[j] - 0.5
+        right[j] = re[j] + 0.5
     for j in range(nr - 1):
         a = rc[j]
         b = rc[j + 1]
