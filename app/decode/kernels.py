@@ -185,16 +185,17 @@ def oneshot_classify(img, unmix, colour_rows, t_abs, t_margin, block, use_hue, c
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _pixel_runs(code, feat, wts, link_ok, y, gap_max, rs, re, rc, link, edge, left, right):
-    """Runs of equal code along row y; link and sub-pixel edge (zero crossing) between neighbours."""
-    W = code.shape[1]
-    C = feat.shape[2]
+def _pixel_runs(code, fr, wts, link_ok, gap_max, rs, re, rc, link, edge, left, right):
+    """Runs of equal code along a row (code (W,), differences fr (C, W)); link and sub-pixel edge (zero
+    crossing) between neighbours."""
+    W = code.shape[0]
+    C = fr.shape[0]
     # every code change opens a candidate run at rs[nr] without a branch (runs change every ~2 px, so
     # a branch per change is mispredicted half the time); runs of no code (-1) are squeezed out below
     nb = 0
     prev = -2
     for x in range(W):
-        c = code[y, x]
+        c = code[x]
         rs[nb] = x
         rc[nb] = c
         nb += c != prev
@@ -226,13 +227,13 @@ def _pixel_runs(code, feat, wts, link_ok, y, gap_max, rs, re, rc, link, edge, le
             cs += 1
         w = wts[a, b, cs]
         for xx in range(xa, xb):
-            s0 = 0.0 + w * feat[y, xx, cs]
-            s1 = 0.0 + w * feat[y, xx + 1, cs]
+            s0 = 0.0 + w * fr[cs, xx]
+            s1 = 0.0 + w * fr[cs, xx + 1]
             for c in range(cs + 1, C):  # only if a transition ever has several channels' weights
                 wc = wts[a, b, c]
                 if wc != 0:
-                    s0 += wc * feat[y, xx, c]
-                    s1 += wc * feat[y, xx + 1, c]
+                    s0 += wc * fr[c, xx]
+                    s1 += wc * fr[c, xx + 1]
             if s0 > 0 and s1 <= 0:
                 xz = xx + s0 / (s0 - s1)
                 if abs(xz - mid) < bestd:
@@ -245,16 +246,17 @@ def _pixel_runs(code, feat, wts, link_ok, y, gap_max, rs, re, rc, link, edge, le
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _sign_events(feat, thr_map, y, c, gap_max, ex, es, et):
-    """Events of channel c along row y: 0 = becomes known (sign es), 1 = sign change, 2 = unknown."""
-    W = feat.shape[1]
+def _sign_events(fr, tr, c, gap_max, ex, es, et):
+    """Events of channel c along a row (differences fr (C, W), sign thresholds tr (C, W)): 0 = becomes
+    known (sign es), 1 = sign change, 2 = unknown."""
+    W = fr.shape[1]
     n = 0
     last_x = -1
     last_s = 0
     last_d = 0.0
     for x in range(W):
-        d = feat[y, x, c]
-        thr = thr_map[y, x, c]
+        d = fr[c, x]
+        thr = tr[c, x]
         s = 1 if d >= thr else (-1 if d <= -thr else 0)
         if s == 0:
             continue
@@ -276,8 +278,8 @@ def _sign_events(feat, thr_map, y, c, gap_max, ex, es, et):
             # the raw sign change between the two signed pixels, interpolated between neighbours
             xz = last_x + last_d / (last_d - d) * (x - last_x)
             for xx in range(last_x, x):
-                d0 = feat[y, xx, c]
-                d1 = feat[y, xx + 1, c]
+                d0 = fr[c, xx]
+                d1 = fr[c, xx + 1]
                 if (d0 > 0) != (d1 > 0):
                     xz = xx + d0 / (d0 - d1)
                     break
@@ -339,16 +341,16 @@ def _event_runs2(ex, es, et, n0, n1, rs, re, rc, link, edge, left, right):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _event_runs(feat, noise, y, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right):
-    """Two-shot stripes of row y from the zero crossings of each channel's difference.
+def _event_runs(fr, tr, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right):
+    """Two-shot stripes of a row from the zero crossings of each channel's difference (fr, tr: (C, W)).
 
     A stripe is the interval between two consecutive sign changes (of any channel) while every
     channel has a sign, so a stripe narrower than a camera pixel is still seen as long as the
     crossings around it are.
     """
-    m = feat.shape[2]
+    m = fr.shape[0]
     for c in range(m):
-        cnt[c] = _sign_events(feat, noise, y, c, gap_max, ex[c], es[c], et[c])
+        cnt[c] = _sign_events(fr, tr, c, gap_max, ex[c], es[c], et[c])
     if m == 2:
         return _event_runs2(ex, es, et, cnt[0], cnt[1], rs, re, rc, link, edge, left, right)
     ptr = np.zeros(3, np.int64)
@@ -649,9 +651,9 @@ def label_rows(
     n_chains = 0
     for y in range(H):
         if events:
-            nr = _event_runs(feat, noise, y, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right)
+            nr = _event_runs(feat[y].T, noise[y].T, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right)
         else:
-            nr = _pixel_runs(code, feat, wts, link_ok, y, gap_max, rs, re, rc, link, edge, left, right)
+            nr = _pixel_runs(code[y], feat[y].T, wts, link_ok, gap_max, rs, re, rc, link, edge, left, right)
         n_chains = _label_row(
             y,
             nr,
@@ -738,20 +740,21 @@ def vertical_check(out_col, out_chain, n_chains, tol, min_support):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, code, feat, noise):
-    """twoshot_classify for row y of the frames into one-row buffers code (1, W), feat/noise (1, W, m).
+def _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, want_thr, code):
+    """twoshot_classify for row y of the frames: codes into code (W,), the unmixed differences into
+    tmp[0:m] and, with want_thr, the zero-crossing sign thresholds into tmp[m:2m] (tmp is (2m, W)).
 
     Same arithmetic in three simple loops: differences and noise floors into the contiguous rows of
-    tmp (4, W), block maxima, then thresholds. Coefficients live in locals and each loop writes one
-    kind of array: the output buffers are float32 like the tables, so the compiler must assume they
-    alias and reloads whatever lives in an array after every store (that, not the arithmetic, cost
-    most of the time). Written out for the usual two pattern channels; bmax is (2, nb + 2) here.
-    Any other channel count takes _classify_row_any.
+    tmp, block maxima, then thresholds. Coefficients live in locals and each loop writes one kind of
+    array: the output buffers are float32 like the tables, so the compiler must assume they alias and
+    reloads whatever lives in an array after every store; interleaved (x, channel) stores also kept
+    the threshold loop from being vectorised. Written out for the usual two pattern channels; bmax is
+    (2, nb + 2) here. Any other channel count takes _classify_row_any.
     """
     if unmix.shape[0] != 2:
-        _classify_row_any(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, code, feat, noise)
+        _classify_row_any(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, code)
         return
-    W = code.shape[1]
+    W = code.shape[0]
     nb = (W + block - 1) // block
     ta = t_abs * np.float32(0.5)
     fv0 = tmp[0]
@@ -794,12 +797,14 @@ def _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, 
             d1 = fv1[x]
             n0 = nz0[x]
             n1 = nz1[x]
-            ok = abs(d0) >= max(tr0, n0) and abs(d1) >= max(tr1, n1)
-            code[0, x] = ((1 if d0 < 0 else 0) | (2 if d1 < 0 else 0)) if ok else -1
-            feat[0, x, 0] = d0
-            feat[0, x, 1] = d1
-            noise[0, x, 0] = max(te0, n0)  # the event mode's thresholds
-            noise[0, x, 1] = max(te1, n1)
+            # bitwise & and arithmetic, not `and`/`if`: no branch per pixel (signs flip every few pixels)
+            ok = (abs(d0) >= max(tr0, n0)) & (abs(d1) >= max(tr1, n1))
+            bits = np.int8(d0 < 0) | (np.int8(d1 < 0) << 1)
+            code[x] = (bits + 1) * np.int8(ok) - 1
+        if want_thr:
+            for x in range(x0, x1):
+                nz0[x] = max(te0, nz0[x])  # the zero-crossing segmentation's sign thresholds
+                nz1[x] = max(te1, nz1[x])
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -831,9 +836,9 @@ def _row_differences(a, b, l0, l1, l2, dl0, dl1, dl2, u00, u01, u02, u10, u11, u
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _classify_row_any(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, code, feat, noise):
-    """_classify_row for any number of pattern channels."""
-    W = code.shape[1]
+def _classify_row_any(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, code):
+    """_classify_row for any number of pattern channels (its thresholds are always written)."""
+    W = code.shape[0]
     m = unmix.shape[0]
     nb = (W + block - 1) // block
     ta = t_abs * 0.5
@@ -862,14 +867,14 @@ def _classify_row_any(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, blo
                 n1 = dlin[1, b1] + dlin[1, a1]
                 n2 = dlin[2, b2] + dlin[2, a2]
                 fv = u0 * d0 + u1 * d1 + u2 * d2
-                feat[0, x, c] = fv
-                noise[0, x, c] = ta * (w0 * n0 + w1 * n1 + w2 * n2)
+                tmp[c, x] = fv
+                tmp[m + c, x] = ta * (w0 * n0 + w1 * n1 + w2 * n2)
                 av = abs(fv)
                 if av > mx:
                     mx = av
             bmax[c, b] = mx
     for x in range(W):
-        code[0, x] = 0
+        code[x] = 0
     for c in range(m):
         bit = 1 << c
         prev = np.float32(0.0)
@@ -886,16 +891,16 @@ def _classify_row_any(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, blo
             x0 = b * block
             x1 = min(W, x0 + block)
             for x in range(x0, x1):
-                nz = noise[0, x, c]
-                d = feat[0, x, c]
+                nz = tmp[m + c, x]
+                d = tmp[c, x]
                 thr = tr if tr >= nz else nz
-                cd = code[0, x]
+                cd = code[x]
                 if abs(d) < thr:
                     cd = -1
                 elif d < 0 and cd >= 0:
                     cd |= bit
-                code[0, x] = cd
-                noise[0, x, c] = te if te > nz else nz  # the event mode's threshold
+                code[x] = cd
+                tmp[m + c, x] = te if te > nz else nz  # the zero-crossing segmentation's threshold
             prev = cur
             cur = nxt
 
@@ -952,10 +957,10 @@ def twoshot_rows(
     A = link_ok.shape[0]
     nb = (W + block - 1) // block
     bmax = np.empty((m, nb + 2), np.float32)
-    tmp = np.empty((4, W), np.float32)
-    code = np.empty((1, W), np.int8)
-    feat = np.empty((1, W, m), np.float32)
-    noise = np.empty((1, W, m), np.float32)
+    tmp = np.empty((2 * m, W), np.float32)  # the row's differences (0..m-1) and sign thresholds (m..2m-1)
+    fr = tmp[:m]
+    tr = tmp[m:]
+    code = np.empty(W, np.int8)
     n = (m + 1) * (2 * W + 8)
     rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, votes = _row_scratch(n, W, n_copies)
     ex = np.empty((m, n), np.float64)
@@ -978,17 +983,17 @@ def twoshot_rows(
     n_r = 0
     stats = np.zeros(4, np.int64)  # dropped events, dropped runs, filled, clashes
     for y in range(H):
-        _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, code, feat, noise)
+        _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, mode != 1, code)
         if mode == 1:
-            nr = _pixel_runs(code, feat, wts, link_ok, 0, gap_max, rs, re, rc, link, edge, left, right)
+            nr = _pixel_runs(code, fr, wts, link_ok, gap_max, rs, re, rc, link, edge, left, right)
         else:
-            nr = _event_runs(feat, noise, 0, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right)
+            nr = _event_runs(fr, tr, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right)
         n_e = _label_row(
             y, nr, rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, table, A, k, period, sw,
             n_copies, proj_w, lo, hi, use_range, edges_mode, min_frac, smooth, sm, votes, col_e, chain_e, n_e,
         )  # fmt: skip
         if mode == 2:
-            nr = _pixel_runs(code, feat, wts, link_ok, 0, gap_max, rs, re, rc, link, edge, left, right)
+            nr = _pixel_runs(code, fr, wts, link_ok, gap_max, rs, re, rc, link, edge, left, right)
             n_r = _label_row(
                 y, nr, rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, table, A, k, period, sw,
                 n_copies, proj_w, lo, hi, use_range, edges_mode, min_frac, smooth, sm, votes, col_r, chain_r, n_r,
