@@ -210,6 +210,19 @@ def _pixel_runs(code, fr, wts, link_ok, gap_max, rs, re, rc, link, edge, left, r
     for j in range(nr):
         left[j] = rs[j] - 0.5
         right[j] = re[j] + 0.5
+    # the edge signal of each transition a -> b: its first weighted channel, and whether it has more
+    A = wts.shape[0]
+    first_c = np.zeros((A, A), np.int64)
+    more = np.zeros((A, A), np.bool_)
+    for a in range(A):
+        for b in range(A):
+            cs = 0
+            while cs + 1 < C and wts[a, b, cs] == 0:
+                cs += 1
+            first_c[a, b] = cs
+            for c in range(cs + 1, C):
+                if wts[a, b, c] != 0:
+                    more[a, b] = True
     for j in range(nr - 1):
         a = rc[j]
         b = rc[j + 1]
@@ -221,19 +234,20 @@ def _pixel_runs(code, fr, wts, link_ok, gap_max, rs, re, rc, link, edge, left, r
         mid = 0.5 * (re[j] + rs[j + 1])
         best = mid
         bestd = 1e9
-        # linked stripes differ in one channel (link_ok), so the edge signal is that channel's d, signed
-        cs = 0
-        while cs + 1 < C and wts[a, b, cs] == 0:
-            cs += 1
+        # two-shot: linked stripes differ in one channel (link_ok), so the edge signal is that channel's d,
+        # signed; one-shot: the difference of the two stripes' colours
+        cs = first_c[a, b]
         w = wts[a, b, cs]
+        s1 = 0.0 + w * fr[cs, xa]
+        if more[a, b]:
+            for c in range(cs + 1, C):
+                s1 += wts[a, b, c] * fr[c, xa]
         for xx in range(xa, xb):
-            s0 = 0.0 + w * fr[cs, xx]
+            s0 = s1
             s1 = 0.0 + w * fr[cs, xx + 1]
-            for c in range(cs + 1, C):  # only if a transition ever has several channels' weights
-                wc = wts[a, b, c]
-                if wc != 0:
-                    s0 += wc * fr[c, xx]
-                    s1 += wc * fr[c, xx + 1]
+            if more[a, b]:
+                for c in range(cs + 1, C):
+                    s1 += wts[a, b, c] * fr[c, xx + 1]
             if s0 > 0 and s1 <= 0:
                 xz = xx + s0 / (s0 - s1)
                 if abs(xz - mid) < bestd:
