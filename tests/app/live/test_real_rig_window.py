@@ -39,7 +39,7 @@ capture: {rate_hz: 60}
 
 SCRIPT = textwrap.dedent(
     """
-    import argparse, sys, time
+    import argparse, sys
     import numpy as np
     from Xlib import X, display as xdisplay
     from Xlib.protocol import event
@@ -94,10 +94,11 @@ SCRIPT = textwrap.dedent(
         if len(state["grabs"]) < 8:
             # On the main thread no flip can happen during the grab: the screen holds the window's last flip.
             pattern, flip_ns = view.projector.window.flips[-1]
+            if state["grabs"] and state["grabs"][-1][0] == flip_ns:
+                return  # one grab per flip
             raw = root.get_image(0, 0, 1024, 768, X.ZPixmap, 0xFFFFFFFF).data
             px = np.frombuffer(raw, np.uint8).reshape(768, 1024, 4)[:, :, 2::-1]
             state["grabs"].append((flip_ns, px))
-            time.sleep(0.03)  # the next grab sees another flip
             return
         # The pipeline logs a flip once its show returned: match each grab to its log entry by flip time.
         log = {s.flip_ns: s for s in pipe.loop.flips.entries()}
