@@ -40,6 +40,7 @@ class OwnerThreadProjector:
         self._calls: deque[_Call] = deque()
         self._closed = False
         self.served = 0  # calls run for other threads
+        self.last_request_s: float | None = None  # time.monotonic() when the last call was queued
 
     # -- owner side ----------------------------------------------------------------------------
     def serve(self, timeout_s: float = 0.0) -> int:
@@ -76,6 +77,7 @@ class OwnerThreadProjector:
                     return None
                 raise DeviceError(f"projector {self.name}: the window was closed")
             self._calls.append(call)
+            self.last_request_s = time.monotonic()
             self._cv.notify()
         return call.wait(self.timeout_s, self.name)
 

@@ -108,6 +108,41 @@ def panel_size(camera_size: tuple[int, int], screen_size: tuple[int, int]) -> tu
     return max(1, int(w * scale)), max(1, int(h * scale))
 
 
+class RedrawPlanner:
+    """When the view may use the main thread without delaying the projector's next show.
+
+    With a projector window, the main thread also runs the shows: one per refresh, queued about a
+    period after the last one. A redraw is split in two phases ("images": conversions and uploads;
+    "draw": blits and flip) and a phase runs only when its recent cost fits before the next show
+    is due. A phase that never fits still runs every `starve_s`, so the view never freezes.
+    """
+
+    PHASES = ("images", "draw")
+
+    def __init__(self, period_s: float, margin_s: float = 0.0015, starve_s: float = 0.5) -> None:
+        self.period_s, self.margin_s, self.starve_s = period_s, margin_s, starve_s
+        self.cost_s = dict.fromkeys(self.PHASES, 0.004)  # running estimate per phase
+        self.phase = "images"
+        self.waiting_since: float | None = None
+
+    def may_run(self, now: float, last_request: float | None, flipped: bool = False) -> bool:
+        """flipped: a show was served just now, the most room there will be before the next one."""
+        if self.waiting_since is None:
+            self.waiting_since = now
+        if last_request is None or flipped or now - self.waiting_since >= self.starve_s:
+            return True
+        slack = last_request + self.period_s - now - self.margin_s
+        return self.cost_s[self.phase] <= slack
+
+    def ran(self, seconds: float) -> str:
+        """Record the phase's cost; returns the phase that ran and moves on to the next."""
+        done = self.phase
+        self.cost_s[done] = 0.7 * self.cost_s[done] + 0.3 * seconds
+        self.phase = self.PHASES[(self.PHASES.index(done) + 1) % len(self.PHASES)]
+        self.waiting_since = None
+        return done
+
+
 class PointPanel:
     """The 3D point view of a result: decimated points, a slowly orbiting or key-turned pose."""
 
@@ -299,10 +334,17 @@ class LiveView:
         status_h = 44  # two lines: the status line wraps on a narrow window
         self.win = win = pyglet.window.Window(2 * pw, 2 * ph + status_h, caption="slscan live", vsync=False)
         self.panel_rects = [(0, 0, pw, ph), (pw, 0, pw, ph), (0, ph, pw, ph), (pw, ph, pw, ph)]  # x, y from the top
-        images: list[Any] = []
-        for w, h in [self.cam_size] * 3 + [self.points.size]:
-            blank = np.zeros((h, w, 3), np.uint8)
-            images.append(pyglet.image.ImageData(w, h, "RGB", blank.tobytes()))
+        # One texture per panel, made once and updated in place (glTexSubImage2D): ImageData.blit
+        # would make a new texture after every set_data.
+        textures: list[Any] = []
+        for i, (w, h) in enumerate([self.cam_size] * 3 + [self.points.size]):
+            tex = pyglet.image.Texture.create(w, h)
+            gl.glBindTexture(tex.target, tex.id)
+            if i == 3:  # points stay crisp squares when the panel scales them up
+                gl.glTexParameteri(tex.target, gl.GL_TEXTURE_MAG_FILTER, gl.GL_NEAREST)
+                gl.glTexParameteri(tex.target, gl.GL_TEXTURE_MIN_FILTER, gl.GL_NEAREST)
+            tex.blit_into(pyglet.image.ImageData(w, h, "RGB", bytes(w * h * 3)), 0, 0, 0)
+            textures.append(tex)
         label = pyglet.text.Label(
             "", x=6, y=status_h - 4, width=2 * pw - 12, multiline=True, anchor_y="top", font_size=10
         )
@@ -313,19 +355,15 @@ class LiveView:
 
         def upload(i: int, rgb: np.ndarray) -> None:
             rgb = np.ascontiguousarray(to_display(rgb))
-            img = images[i]
-            img.set_data("RGB", -rgb.shape[1] * 3, rgb.tobytes())  # negative pitch: row 0 on top
-            if i == 3:  # points stay crisp squares when the panel scales them up
-                tex = img.get_texture()
-                gl.glBindTexture(tex.target, tex.id)
-                gl.glTexParameteri(tex.target, gl.GL_TEXTURE_MAG_FILTER, gl.GL_NEAREST)
-                gl.glTexParameteri(tex.target, gl.GL_TEXTURE_MIN_FILTER, gl.GL_NEAREST)
+            h, w = rgb.shape[:2]
+            data = pyglet.image.ImageData(w, h, "RGB", rgb.tobytes(), pitch=-w * 3)  # negative pitch: row 0 on top
+            textures[i].blit_into(data, 0, 0, 0)
 
         def draw() -> None:
             win.switch_to()
             win.clear()
-            for img, (x, y, w, h) in zip(images, self.panel_rects, strict=True):
-                img.blit(x, 2 * ph + status_h - y - h, width=w, height=h)
+            for tex, (x, y, w, h) in zip(textures, self.panel_rects, strict=True):
+                tex.blit(x, 2 * ph + status_h - y - h, width=w, height=h)
             for t in titles:
                 t.draw()
             label.draw()
@@ -380,27 +418,34 @@ class LiveView:
             raise
         next_draw = time.monotonic()
         cpu0 = time.thread_time()
+        planner = RedrawPlanner(1.0 / self.session.rate_hz)
         try:
             # The view's own loop (not pyglet.app.run, which would redraw and flip the projector
-            # window too): projector calls, scheduled functions, window events, then a redraw.
-            # With a projector window the redraw follows a flip: it then has most of a refresh
-            # period before the next show is due, and never makes a flip late.
+            # window too): projector calls, window events, then a redraw in two phases, each only
+            # when it fits before the projector's next show (RedrawPlanner).
             while not self.quit:
+                flipped = False
                 if self.projector is not None:
                     flipped = self.projector.serve(0.005) > 0
                 else:
-                    flipped = False
                     time.sleep(min(0.005, max(0.0, next_draw - time.monotonic())))
                 win.dispatch_events()
                 if self.quit or not self.pipe.running:
                     break
                 now = time.monotonic()
-                if now < next_draw or (self.projector is not None and not flipped and now < next_draw + 0.1):
+                if planner.phase == "images" and now < next_draw:
                     continue
-                next_draw = max(next_draw + REDRAW_S, now - REDRAW_S)
-                pyglet.clock.tick()
-                tick()
-                draw()
+                last_request = self.projector.last_request_s if self.projector is not None else None
+                if not planner.may_run(now, last_request, flipped):
+                    continue
+                t0 = time.perf_counter()
+                if planner.phase == "images":
+                    next_draw = max(next_draw + REDRAW_S, now - REDRAW_S)
+                    pyglet.clock.tick()
+                    tick()
+                else:
+                    draw()
+                planner.ran(time.perf_counter() - t0)
         except KeyboardInterrupt:
             pass
         finally:
