@@ -19,8 +19,10 @@ closing the window quits too. A device fault ends the session with its message o
 Threads: pyglet wants all windows of a process on one thread. The view's loop runs on the main
 thread and owns the projector window too when the rig has one (`PygletProjector`): the devices
 are opened here, and the capture loop's projector calls are handed to this thread
-(app/owner_thread.py), served between redraws. Esc, q or closing the projector window ends
-the session cleanly, as in the view.
+(app/owner_thread.py), served between redraws. A redraw runs in two phases (images: conversions
+and texture uploads; draw: blits and flip), each right after a served flip or when its recent
+cost fits before the next show is due (RedrawPlanner), so the view delays the projector as little
+as it can. Esc, q or closing the projector window ends the session cleanly, as in the view.
 """
 
 from __future__ import annotations
