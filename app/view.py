@@ -432,6 +432,7 @@ class LiveView:
                 else:
                     time.sleep(min(0.005, max(0.0, next_draw - time.monotonic())))
                 win.dispatch_events()
+                pyglet.clock.tick()  # functions scheduled on pyglet's clock (tests drive the view with them)
                 if self.quit or not self.pipe.running:
                     break
                 now = time.monotonic()
@@ -443,7 +444,6 @@ class LiveView:
                 t0 = time.perf_counter()
                 if planner.phase == "images":
                     next_draw = max(next_draw + REDRAW_S, now - REDRAW_S)
-                    pyglet.clock.tick()
                     tick()
                 else:
                     draw()

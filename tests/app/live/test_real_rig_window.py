@@ -91,18 +91,20 @@ SCRIPT = textwrap.dedent(
         pipe = view.pipe
         if pipe is None or pipe.latest is None or pipe.loop is None or state["stopping"]:
             return
-        if len(state["grabs"]) < 8:
+        grabs = state["grabs"]
+        both = len({p for p, _, _ in grabs}) == 2
+        if len(grabs) < 8 or (not both and len(grabs) < 40):
             # On the main thread no flip can happen during the grab: the screen holds the window's last flip.
             pattern, flip_ns = view.projector.window.flips[-1]
-            if state["grabs"] and state["grabs"][-1][0] == flip_ns:
+            if grabs and grabs[-1][1] == flip_ns:
                 return  # one grab per flip
             raw = root.get_image(0, 0, 1024, 768, X.ZPixmap, 0xFFFFFFFF).data
             px = np.frombuffer(raw, np.uint8).reshape(768, 1024, 4)[:, :, 2::-1]
-            state["grabs"].append((flip_ns, px))
+            grabs.append((pattern, flip_ns, px))
             return
         # The pipeline logs a flip once its show returned: match each grab to its log entry by flip time.
         log = {s.flip_ns: s for s in pipe.loop.flips.entries()}
-        for flip_ns, px in state["grabs"]:
+        for _, flip_ns, px in grabs:
             shown = log.get(flip_ns)
             tag = None if shown is None else shown.pattern
             exact = tag is not None and np.array_equal(px, session.patterns.images[tag])
@@ -150,7 +152,7 @@ def test_projector_window_and_view_in_one_process(tmp_path, xserver, how):
     assert r.returncode == 0, r.stdout + r.stderr[-3000:]
     lines = r.stdout.splitlines()
     grabs = [line.split() for line in lines if line.startswith("grab ")]
-    assert len(grabs) == 8, r.stdout
+    assert 8 <= len(grabs) <= 40, r.stdout
     # every grab: the screen is exactly the pattern the pipeline tagged that flip with; both patterns seen
     assert all(g[2] == "True" for g in grabs), r.stdout
     assert {g[1] for g in grabs} == {"0", "1"}, r.stdout
