@@ -36,19 +36,19 @@ DEFAULT_DEPTH_RANGE_MM = (100.0, 10000.0)  # validation scan when the config giv
 
 def open_devices(cfg: Config) -> tuple[object, object, object | None]:
     """Camera, projector and (optional) trigger of `cfg`'s rig section, from the driver registries."""
-    from app.commands.live import _driver, _make  # the live session's device construction, one rule
+    from app.rig_devices import make_device, rig_driver  # the live session's device construction, one rule
 
     names = {cfg.get(f"rig.{k}.driver", None) for k in ("camera", "projector", "trigger")}
     if "sim" in names:
         importlib.import_module("drivers.sim.devices")  # registers the "sim" drivers
-    cam_name, cam_opts = _driver(cfg, "camera", CAMERAS)
-    proj_name, proj_opts = _driver(cfg, "projector", PROJECTORS)
-    trig_name, trig_opts = _driver(cfg, "trigger", TRIGGERS, required=False)
-    cam = _make(cfg, "camera", CAMERAS, cam_name, cam_opts)  # type: ignore[arg-type]
+    cam_name, cam_opts = rig_driver(cfg, "camera", CAMERAS)
+    proj_name, proj_opts = rig_driver(cfg, "projector", PROJECTORS)
+    trig_name, trig_opts = rig_driver(cfg, "trigger", TRIGGERS, required=False)
+    cam = make_device(cfg, "camera", CAMERAS, cam_name, cam_opts)  # type: ignore[arg-type]
     try:
-        proj = _make(cfg, "projector", PROJECTORS, proj_name, proj_opts)  # type: ignore[arg-type]
+        proj = make_device(cfg, "projector", PROJECTORS, proj_name, proj_opts)  # type: ignore[arg-type]
         try:
-            trig = _make(cfg, "trigger", TRIGGERS, trig_name, trig_opts) if trig_name else None
+            trig = make_device(cfg, "trigger", TRIGGERS, trig_name, trig_opts) if trig_name else None
         except BaseException:
             proj.close()
             raise

@@ -7,7 +7,6 @@ Also the session builder the `dump`, `replay` and `bench --live` commands share:
 from __future__ import annotations
 
 import argparse
-import contextlib
 import importlib
 import inspect
 import os
@@ -25,6 +24,7 @@ from app.errors import DeviceError, InputError
 from app.owner_thread import HandOver
 from app.patterns import SCHEMES, PatternSet, make_patterns
 from app.pipeline import DECODE_WORKERS, WORKERS_HELP, LivePipeline, Processor, Result, status_line
+from app.rig_devices import make_device, rig_driver
 from calibration.model import Calibration
 from drivers.base import CAMERAS, PROJECTORS, TRIGGERS
 
@@ -42,11 +42,6 @@ m = switch scheme, q / Esc = quit.
 Without a display, `slscan live` says so and runs headless.
 """
 
-DRIVER_MODULES = {
-    "camera": ("drivers.camera.spec",),
-    "projector": ("drivers.projector.window",),
-    "trigger": ("drivers.trigger.serial_box",),
-}
 SIM_MODULE = "drivers.sim.devices"
 
 
@@ -107,39 +102,6 @@ def _scheme_options(cfg: Config, scheme: str) -> dict:
     return opts
 
 
-def _driver(cfg: Config, kind: str, registry: dict, required: bool = True) -> tuple[str | None, dict]:
-    """The `rig.KIND` section: its driver name, checked against the registry, and its options."""
-    sec = cfg.section("rig").get(kind)
-    if sec is None or sec == "none":
-        if required:
-            raise InputError(f"{cfg.path}: missing key 'rig.{kind}'")
-        return None, {}
-    if not isinstance(sec, dict):
-        raise InputError(f"{cfg.path}: key 'rig.{kind}' must be a mapping with a 'driver'")
-    name = cfg.get(f"rig.{kind}.driver", types=str)
-    if name == "none" and not required:
-        return None, {}
-    if name != "sim":
-        for mod in DRIVER_MODULES[kind]:
-            with contextlib.suppress(ImportError):
-                importlib.import_module(mod)
-        if kind == "camera":
-            from drivers.camera.spec import load_camera_drivers
-
-            load_camera_drivers()
-        if name not in registry:
-            known = ", ".join(sorted({*registry, "sim"}))
-            raise InputError(f"{cfg.path}: key 'rig.{kind}.driver': unknown driver {name!r} (known: {known})")
-    return name, {k: v for k, v in sec.items() if k != "driver"}
-
-
-def _make(cfg: Config, kind: str, registry: dict, name: str, options: dict) -> Any:
-    try:
-        return registry[name](**options)
-    except TypeError as exc:
-        raise InputError(f"{cfg.path}: key 'rig.{kind}': bad options for driver {name!r} ({exc})") from None
-
-
 def build_session(
     config: Config | str | os.PathLike | None = None,
     *,
@@ -160,9 +122,9 @@ def build_session(
     ):
         raise InputError(f"{cfg.path}: key 'depth_range_mm' must be [near, far] with 0 < near < far")
 
-    cam_name, cam_opts = _driver(cfg, "camera", CAMERAS)
-    proj_name, proj_opts = _driver(cfg, "projector", PROJECTORS)
-    trig_name, trig_opts = _driver(cfg, "trigger", TRIGGERS, required=False)
+    cam_name, cam_opts = rig_driver(cfg, "camera", CAMERAS)
+    proj_name, proj_opts = rig_driver(cfg, "projector", PROJECTORS)
+    trig_name, trig_opts = rig_driver(cfg, "trigger", TRIGGERS, required=False)
     opts = _scheme_options(cfg, scheme)
 
     if "sim" in (cam_name, proj_name, trig_name):
@@ -185,15 +147,15 @@ def build_session(
         trig_opts["cycle"] = len(pattern_order(scheme, len(patterns)))  # the box marks each pattern cycle
 
     def make_devices() -> tuple[Any, Any, Any]:
-        cam = _make(cfg, "camera", CAMERAS, cam_name, cam_opts)  # type: ignore[arg-type]
+        cam = make_device(cfg, "camera", CAMERAS, cam_name, cam_opts)  # type: ignore[arg-type]
         try:
-            proj = _make(cfg, "projector", PROJECTORS, proj_name, proj_opts)  # type: ignore[arg-type]
+            proj = make_device(cfg, "projector", PROJECTORS, proj_name, proj_opts)  # type: ignore[arg-type]
             if tuple(proj.size) != tuple(calibration.projector_size):
                 raise DeviceError(
                     f"projector {proj.name} is {proj.size[0]}x{proj.size[1]} but the calibration "
                     f"{cal_file} says {calibration.projector_size[0]}x{calibration.projector_size[1]}"
                 )
-            trig = _make(cfg, "trigger", TRIGGERS, trig_name, trig_opts) if trig_name else None
+            trig = make_device(cfg, "trigger", TRIGGERS, trig_name, trig_opts) if trig_name else None
         except BaseException:
             cam.close()
             raise
@@ -266,7 +228,7 @@ def _sim_session(
             devs = devices
         if window is None:
             return devs.camera, devs.projector, devs.trigger
-        shown = _make(cfg, "projector", PROJECTORS, window[0], window[1])
+        shown = make_device(cfg, "projector", PROJECTORS, window[0], window[1])
         if tuple(shown.size) != tuple(devs.projector.size):
             shown.close()
             raise DeviceError(
