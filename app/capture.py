@@ -160,6 +160,8 @@ class FrameChecker:
     # Check from the pixels that each frame differs from its predecessor more than from the frame
     # of the same pattern one cycle earlier (catches a late flip that left no trace in any counter).
     # A set then needs its frames' predecessors of one cycle before: sets start one cycle later.
+    # Suits patterns that all look different in the camera (two-shot's pair); not Gray code, whose
+    # coarse bits can look alike on a small board (the calibration wizard checks its takes by pixels).
     check_alternation: bool = False
     stats: CaptureStats = field(default_factory=CaptureStats)
 
