@@ -31,9 +31,10 @@ class TwoShotParams:
     # them. "events": stripes are the intervals between per-channel zero crossings. "both": the two
     # merged (values of one where the other has none; where they disagree by > 0.5 px, none).
     # Measured on the virtual rig's six bench scenes (`slscan bench --accuracy`): "runs" at t_rel 0.03
-    # meets every target with the highest correct rate, at half the time of "both", whose coverage is
-    # at most 0.7 % higher; "events" alone misses 90 % coverage on the cube and the cylinder. (At
-    # t_rel 0.2, "runs" alone missed it on the saturated colour panel.)
+    # meets every target at half the time of "both" (at t_rel 0.2), whose coverage is at most 0.8 %
+    # higher and whose correct rate is within 0.12 % (higher on the cube, lower on the face); "events"
+    # alone misses 90 % coverage on the cube and the cylinder. (At t_rel 0.2, "runs" alone missed it
+    # on the saturated colour panel.)
     segmentation: str = "runs"
     label: LabelParams = field(default_factory=LabelParams)
 
