@@ -44,7 +44,11 @@ class Processor:
     """FrameSet -> (StripeMap, depth): issue 4's FrameSetDecoder, built once, with the two stages timed apart."""
 
     def __init__(
-        self, patterns: PatternSet, calibration: Calibration, depth_range_mm: tuple[float, float] | None
+        self,
+        patterns: PatternSet,
+        calibration: Calibration,
+        depth_range_mm: tuple[float, float] | None,
+        segmentation: str | None = None,
     ) -> None:
         from app.decode.pipeline import FrameSetDecoder
 
@@ -52,7 +56,7 @@ class Processor:
         self.patterns = patterns
         self.calibration = calibration
         meta = {**patterns.params, "scheme": patterns.scheme, "size": list(patterns.size)}
-        self.frameset_decoder = FrameSetDecoder(patterns.scheme, meta, calibration, depth_range_mm)
+        self.frameset_decoder = FrameSetDecoder(patterns.scheme, meta, calibration, depth_range_mm, segmentation)
         self.triangulator = self.frameset_decoder.triangulator
         self.decoder = self.frameset_decoder.decoder
 

@@ -44,6 +44,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--calibration", metavar="FILE", help="calibration YAML (default: the dump's own)")
     p.add_argument("--workers", type=non_negative_int, default=0, metavar="N", help="processes (default: all cores)")
     p.add_argument("--disjoint", action="store_true", help="two-shot: disjoint pairs (1-2, 3-4) instead of sliding")
+    p.add_argument(
+        "--segmentation",
+        choices=("runs", "events", "both"),
+        help="two-shot stripes: code runs (default), zero crossings, or both merged (a little more coverage "
+        "on grazing surfaces, twice the time)",
+    )
     p.add_argument("--png16", action="store_true", help="also write depth_NNNNNN.png (16-bit, 0.1 mm units)")
     p.add_argument("--preview", action="store_true", help="also write preview_NNNNNN.png (colourised depth)")
     p.set_defaults(func=run)
@@ -55,11 +61,13 @@ def _quiet_opencv() -> None:
     cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
 
 
-def _init(folder: str, scheme: str, meta: dict, cal: Calibration | None, rng: tuple | None) -> None:
+def _init(
+    folder: str, scheme: str, meta: dict, cal: Calibration | None, rng: tuple | None, seg: str | None = None
+) -> None:
     _quiet_opencv()
     warnings.simplefilter("ignore", EmptyResultWarning)
     _STATE["dump"] = read_dump(folder)
-    _STATE["decoder"] = FrameSetDecoder(scheme, meta, cal, rng)
+    _STATE["decoder"] = FrameSetDecoder(scheme, meta, cal, rng, seg)
     _STATE["range"] = rng
 
 
@@ -100,7 +108,8 @@ def run(args: argparse.Namespace) -> int:
         )
     # Fail early, in this process, on the first set (sizes, calibration), with a one-line error.
     warnings.simplefilter("ignore", EmptyResultWarning)
-    _init(str(dump.folder), dump.scheme, meta, cal, rng)
+    seg = getattr(args, "segmentation", None)
+    _init(str(dump.folder), dump.scheme, meta, cal, rng, seg)
     workers = args.workers or os.cpu_count() or 1
     empty = 0
     with atomic_directory(args.out) as tmp:
@@ -112,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
         if len(jobs) > 1:
             if workers > 1:
                 with ProcessPoolExecutor(
-                    workers, initializer=_init, initargs=(str(dump.folder), dump.scheme, meta, cal, rng)
+                    workers, initializer=_init, initargs=(str(dump.folder), dump.scheme, meta, cal, rng, seg)
                 ) as ex:
                     for _, nvalid in ex.map(_work, jobs[1:], chunksize=2):
                         empty += nvalid == 0

@@ -78,7 +78,10 @@ class Session:
         return CaptureLoop(camera, projector, trigger, self.scheme, len(self.patterns), rate_hz=self.rate_hz, **kw)
 
     def processor(self) -> Processor:
-        return Processor(self.patterns, self.calibration, self.depth_range_mm)
+        seg = None  # two-shot: the config's scheme.segmentation (checked when the session was built)
+        if self.config is not None and self.scheme == "two-shot":
+            seg = self.config.get("scheme.segmentation", None, types=str)
+        return Processor(self.patterns, self.calibration, self.depth_range_mm, seg)
 
     def with_scheme(self, scheme: str) -> Session:
         """The same rig with another pattern scheme (the view's `m` key)."""
@@ -97,6 +100,12 @@ def _scheme_options(cfg: Config, scheme: str) -> dict:
             opts["stripe_width"] = cfg.get("scheme.stripe_width", types=int)
     if scheme == "two-shot" and "channels" in sec:
         opts["channels"] = cfg.get("scheme.channels", types=str)
+    if scheme == "two-shot" and "segmentation" in sec:
+        from app.decode.twoshot import SEGMENTATIONS  # lazy: the decoders compile with numba
+
+        seg = cfg.get("scheme.segmentation", types=str)
+        if seg not in SEGMENTATIONS:
+            raise InputError(f"{cfg.path}: key 'scheme.segmentation': {seg!r} (choose {', '.join(SEGMENTATIONS)})")
     if scheme == "one-shot" and "colors" in sec:
         opts["colors"] = cfg.get("scheme.colors", types=str)
     return opts

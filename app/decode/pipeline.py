@@ -11,7 +11,7 @@ from app.decode.colour import camera_gamma_of
 from app.decode.graycode import GrayCodeDecoder
 from app.decode.oneshot import OneShotDecoder
 from app.decode.stripemap import StripeMap
-from app.decode.twoshot import TwoShotDecoder
+from app.decode.twoshot import SEGMENTATIONS, TwoShotDecoder, TwoShotParams
 from app.errors import InputError
 from app.triangulate import PointCloud, Triangulator
 from calibration.model import Calibration
@@ -40,7 +40,12 @@ class FrameSetDecoder:
         pattern_meta: dict,
         calibration: Calibration | None = None,
         depth_range_mm: tuple[float, float] | None = None,
+        segmentation: str | None = None,
     ) -> None:
+        """segmentation: two-shot stripes from code runs (default), zero crossings or both merged
+        (TwoShotParams: both covers grazing surfaces a little better at twice the time)."""
+        if segmentation is not None and segmentation not in SEGMENTATIONS:
+            raise InputError(f"segmentation {segmentation!r}: choose {', '.join(SEGMENTATIONS)}")
         self.scheme = scheme
         self.calibration = calibration
         self.triangulator = None
@@ -59,7 +64,8 @@ class FrameSetDecoder:
             mixing = calibration.color_mixing
             gamma = camera_gamma_of(calibration)
         if scheme == "two-shot":
-            self.decoder = TwoShotDecoder(pattern_meta, proj_w, mixing, column_range, camera_gamma=gamma)
+            params = TwoShotParams(segmentation=segmentation) if segmentation else None
+            self.decoder = TwoShotDecoder(pattern_meta, proj_w, mixing, column_range, params, camera_gamma=gamma)
         elif scheme == "one-shot":
             self.decoder = OneShotDecoder(pattern_meta, proj_w, mixing, column_range, camera_gamma=gamma)
         elif scheme == "graycode":

@@ -52,6 +52,23 @@ def test_decode_dump_writes_depth_cloud_and_stripes(rig_dump, tmp_path, run_cli)
         assert (out / f"depth_{n:06d}.png").is_file() and (out / f"preview_{n:06d}.png").is_file()
 
 
+@pytest.mark.parametrize("segmentation", ["events", "both"])
+def test_decode_with_another_segmentation(rig_dump, tmp_path, run_cli, segmentation):
+    folder, rig = rig_dump
+    out = tmp_path / "out"
+    r = run_cli("decode", folder, "--out", out, "--workers", "1", "--segmentation", segmentation)
+    assert r.returncode == 0, r.stderr
+    depth = read_float_tiff(out / "depth_000000.tiff")
+    ok = depth > 0
+    assert ok.mean() > 0.9 and np.sqrt(np.mean((depth[ok] - rig.ground_truth.depth[ok]) ** 2)) < 1.0
+
+
+def test_decode_refuses_an_unknown_segmentation(rig_dump, tmp_path, run_cli):
+    r = run_cli("decode", rig_dump[0], "--out", tmp_path / "out", "--segmentation", "edges")
+    one_line_error(r, "--segmentation")
+    assert not (tmp_path / "out").exists()
+
+
 def test_gap_and_bad_tags_are_skipped(rig_dump, tmp_path, run_cli):
     folder, _ = rig_dump
     d = copy(folder, tmp_path)

@@ -27,6 +27,7 @@ CASES = {
     "missing rig": (lambda d: d.pop("rig"), "missing key 'rig'"),
     "bad scheme": (lambda d: d["scheme"].update(name="three-shot"), "'scheme.name'"),
     "bad rate": (lambda d: d["capture"].update(rate_hz="fast"), "'capture.rate_hz'"),
+    "bad segmentation": (lambda d: d["scheme"].update(segmentation="edges"), "'scheme.segmentation'"),
     "bad depth range": (lambda d: d.update(depth_range_mm=[900, 100]), "'depth_range_mm'"),
     "unknown sim key": (lambda d: d["sim"].update(lens="fisheye"), "'sim.lens'"),
     "real rig without calibration": (
@@ -48,6 +49,14 @@ def test_config_error_is_one_line_naming_file_and_key(tmp_path, capsys, name, co
     assert err.count("\n") == 1, err
     assert path in err and expected in err, err
     assert not (tmp_path / "out").exists()
+
+
+def test_segmentation_from_the_config_reaches_the_decoder(tmp_path):
+    from app.commands.live import build_session
+
+    session = build_session(config_with(tmp_path, lambda d: d["scheme"].update(segmentation="both")))
+    assert session.processor().decoder.params.segmentation == "both"
+    assert build_session().processor().decoder.params.segmentation == "runs"  # the default
 
 
 def test_missing_config_file_and_cli_exit_status(tmp_path, run_cli):
