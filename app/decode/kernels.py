@@ -51,7 +51,7 @@ def _block_extrema(feat, y, c, block, nb, bmax, bmin, absolute):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def twoshot_classify(f1, f2, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, want_code, code, feat, noise):
+def twoshot_classify(f1, f2, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, code, feat, noise):
     """code[y, x] = bits (1 = channel max in frame 1, i.e. frame2 - frame1 < 0), -1 when unsure.
 
     Raw values are linearised through lin (3, L) (the camera response), then feat[y, x, c] =
@@ -100,14 +100,13 @@ def twoshot_classify(f1, f2, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, 
                     a = bmax[c, b + 1]
                 nz = noise[y, x, c]
                 d = feat[y, x, c]
-                if want_code:
-                    thr = t_rel * a
-                    if thr < nz:
-                        thr = nz
-                    if abs(d) < thr:
-                        ok = False
-                    elif d < 0:
-                        cd |= 1 << c
+                thr = t_rel * a
+                if thr < nz:
+                    thr = nz
+                if abs(d) < thr:
+                    ok = False
+                elif d < 0:
+                    cd |= 1 << c
                 te = t_rel_edge * a
                 noise[y, x, c] = te if te > nz else nz  # the event mode's threshold
             code[y, x] = cd if ok else -1

@@ -104,10 +104,9 @@ class TwoShotDecoder:
         if frame1.dtype not in (np.uint8, np.uint16) or frame2.dtype != frame1.dtype:
             raise InputError(f"frames must both be uint8 or uint16 RGB, found {frame1.dtype} and {frame2.dtype}")
 
-    def classify(
-        self, frame1: np.ndarray, frame2: np.ndarray, want_code: bool = True
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Per-pixel codes (-1 = none), the unmixed differences and the event mode's sign thresholds."""
+    def classify(self, frame1: np.ndarray, frame2: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per-pixel codes (-1 = none), the unmixed differences and the event mode's sign thresholds, as full
+        images: the specification the fused path (decode) is tested against, step by step."""
         self._check_pair(frame1, frame2)
         H, W = frame1.shape[:2]
         m = self.unmix.shape[0]
@@ -126,7 +125,6 @@ class TwoShotDecoder:
             np.float32(p.t_rel),
             np.float32(p.t_rel_edges),
             p.block,
-            want_code,
             code,
             feat,
             noise,
@@ -142,18 +140,13 @@ class TwoShotDecoder:
         return self._decode(frame1, frame2)
 
     def _decode(self, frame1: np.ndarray, frame2: np.ndarray) -> StripeMap:
-        p = self.params
-        seg = p.segmentation
-        if seg not in SEGMENTATIONS:
-            raise ValueError(f"segmentation {seg!r} is not one of {', '.join(SEGMENTATIONS)}")
-        return self._decode_fused(frame1, frame2)
-
-    def _decode_fused(self, frame1: np.ndarray, frame2: np.ndarray) -> StripeMap:
         """Every segmentation, fused row by row (no full-image codes or differences): the same result as
         label() of the events or the runs, and for "both" label(runs) merged into label(events) by merge_maps."""
         self._check_pair(frame1, frame2)
         H, W = frame1.shape[:2]
         p, lp, spec = self.params, self.params.label, self.spec
+        if p.segmentation not in SEGMENTATIONS:
+            raise ValueError(f"segmentation {p.segmentation!r} is not one of {', '.join(SEGMENTATIONS)}")
         lin, dlin = self.luts(frame1.dtype)
         use_range = self.column_range is not None
         lo, hi = self.column_range if use_range else (EMPTY_RANGE, EMPTY_RANGE)
@@ -209,7 +202,7 @@ class TwoShotDecoder:
             chain=chain_e,
             info=(
                 {"chains": int(n_e), "chains_dropped": int(drop_e)}
-                if p.segmentation != "both"
+                if not both
                 else {
                     "events": {"chains": int(n_e), "chains_dropped": int(drop_e)},
                     "runs": {"chains": int(n_r), "chains_dropped": int(drop_r)},
