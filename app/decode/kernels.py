@@ -704,6 +704,13 @@ def label_rows(
     return n_chains
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _unconfirmed(agree, disagree, npx, min_support):
+    """The vertical check's verdict on a chain: no more agreeing than disagreeing vertical neighbours, or
+    fewer than min_support agreeing ones per pixel."""
+    return disagree >= agree or agree < min_support * npx
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def vertical_check(out_col, out_chain, n_chains, tol, min_support):
     """Keep a chain only where the rows above and below confirm it.
@@ -739,7 +746,7 @@ def vertical_check(out_col, out_chain, n_chains, tol, min_support):
     drop = np.zeros(nc, np.bool_)
     dropped = 0
     for c in range(n_chains):
-        if disagree[c] >= agree[c] or agree[c] < min_support * npx[c]:
+        if _unconfirmed(agree[c], disagree[c], npx[c], min_support):
             drop[c] = True
             dropped += 1
     if dropped:
@@ -984,11 +991,12 @@ def twoshot_rows(
     agree_e = np.zeros(cap, np.int32)
     dis_e = np.zeros(cap, np.int32)
     npx_e = np.zeros(cap, np.int32)
-    agree_r = np.zeros(cap, np.int32)
-    dis_r = np.zeros(cap, np.int32)
-    npx_r = np.zeros(cap, np.int32)
+    cap_r = cap if mode == 2 else 1  # the runs map of "both" only
+    agree_r = np.zeros(cap_r, np.int32)
+    dis_r = np.zeros(cap_r, np.int32)
+    npx_r = np.zeros(cap_r, np.int32)
     span_e = np.zeros((cap, 2), np.int32)
-    span_r = np.zeros((cap, 2), np.int32)
+    span_r = np.zeros((cap_r, 2), np.int32)
     first_e = np.zeros(H + 1, np.int64)  # chains of row y are first_e[y] .. first_e[y + 1] - 1
     first_r = np.zeros(H + 1, np.int64)
     check = tol > 0
@@ -1080,7 +1088,7 @@ def _drop_chains(y, col, chain, first, agree, disagree, npx, span, min_support):
     """vertical_check's verdict on the chains of row y, which have all their votes; returns how many it dropped."""
     dropped = 0
     for c in range(first[y], first[y + 1]):
-        if disagree[c] >= agree[c] or agree[c] < min_support * npx[c]:
+        if _unconfirmed(agree[c], disagree[c], npx[c], min_support):
             dropped += 1
             for x in range(span[c, 0], span[c, 1] + 1):
                 if chain[y, x] == c:
@@ -1099,11 +1107,11 @@ def _finish_row(
     if check:
         # a chain is dropped by marking its pixel count negative (read below)
         for c in range(first_e[y], first_e[y + 1]):
-            if dis_e[c] >= agree_e[c] or agree_e[c] < min_support * npx_e[c]:
+            if _unconfirmed(agree_e[c], dis_e[c], npx_e[c], min_support):
                 npx_e[c] = -1
                 stats[0] += 1
         for c in range(first_r[y], first_r[y + 1]):
-            if dis_r[c] >= agree_r[c] or agree_r[c] < min_support * npx_r[c]:
+            if _unconfirmed(agree_r[c], dis_r[c], npx_r[c], min_support):
                 npx_r[c] = -1
                 stats[1] += 1
     for x in range(W):
