@@ -225,9 +225,19 @@ def _pixel_runs(code, fr, wts, link_ok, gap_max, rs, re, rc, link, edge, left, r
     for j in range(nr - 1):
         a = rc[j]
         b = rc[j + 1]
-        link[j] = (rs[j + 1] - re[j] - 1 <= gap_max) and link_ok[a, b]
+        link[j] = (rs[j + 1] - re[j] - 1 <= gap_max) & link_ok[a, b]
         if not link[j]:
             continue
+        cs = first_c[a, b]
+        w = wts[a, b, cs]
+        if rs[j + 1] == re[j] + 1 and not more[a, b]:
+            # adjacent runs (the usual case): both runs' pixels have a sign, so when the edge signal falls from
+            # > 0 to <= 0 between them, that is the only zero crossing the search below would find
+            s0 = 0.0 + w * fr[cs, re[j]]
+            s1 = 0.0 + w * fr[cs, rs[j + 1]]
+            if s0 > 0 and s1 <= 0:
+                edge[j] = re[j] + s0 / (s0 - s1)
+                continue
         xa = re[j] - 1 if re[j] - 1 >= rs[j] else re[j]
         xb = rs[j + 1] + 1 if rs[j + 1] + 1 <= re[j + 1] else rs[j + 1]
         mid = 0.5 * (re[j] + rs[j + 1])
@@ -235,8 +245,6 @@ def _pixel_runs(code, fr, wts, link_ok, gap_max, rs, re, rc, link, edge, left, r
         bestd = 1e9
         # two-shot: linked stripes differ in one channel (link_ok), so the edge signal is that channel's d,
         # signed; one-shot: the difference of the two stripes' colours
-        cs = first_c[a, b]
-        w = wts[a, b, cs]
         s1 = 0.0 + w * fr[cs, xa]
         if more[a, b]:
             for c in range(cs + 1, C):
@@ -444,8 +452,12 @@ def _label_row(
     out_col,
     out_chain,
     n_chains,
+    span,
 ):
-    """Windows -> confirmed labels -> chains -> interpolated columns of row y. Returns n_chains."""
+    """Windows -> confirmed labels -> chains -> interpolated columns of row y. Returns n_chains.
+
+    span[c] = (first, last) pixel chain c may write (when span has room for it: the fused path's vote counts
+    walk these spans instead of whole rows)."""
     W = out_col.shape[1]
     if nr < k:
         return n_chains
@@ -526,26 +538,31 @@ def _label_row(
             for q in range(nw):
                 S += (q - smooth) * (q - smooth)
             inv_nw = 1.0 / nw
-            for r in range(nn):
-                a0 = r - smooth
-                if a0 < 0:
-                    a0 = 0
-                if a0 + nw > nn:
-                    a0 = nn - nw
+            # interior nodes: tc is 0, every weight is exactly 1 / n (the same sum, fewer operations); the
+            # usual +-2 written out, so the loop over nodes has no inner loop and is vectorised
+            if smooth == 2:
+                for r in range(2, nn - 2):
+                    sm[r] = (
+                        0.0 + nx[r - 2] * inv_nw + nx[r - 1] * inv_nw + nx[r] * inv_nw + nx[r + 1] * inv_nw
+                    ) + nx[r + 2] * inv_nw
+            else:
+                for r in range(smooth, nn - smooth):
+                    acc = 0.0
+                    for q in range(nw):
+                        acc += nx[r - smooth + q] * inv_nw
+                    sm[r] = acc
+            # the end nodes fit the first or last window
+            for e in range(2 * smooth):
+                r = e if e < smooth else nn - 2 * smooth + e
+                a0 = 0 if r < smooth else nn - nw
                 tc = (r - a0 - smooth) / S
                 acc = 0.0
-                if r - a0 == smooth:
-                    # interior node: tc is 0, every weight is exactly 1 / n (the same sum, fewer operations)
-                    for q in range(nw):
-                        acc += nx[a0 + q] * inv_nw
-                else:
-                    for q in range(nw):
-                        acc += nx[a0 + q] * (1.0 / nw + (q - smooth) * tc)
+                for q in range(nw):
+                    acc += nx[a0 + q] * (1.0 / nw + (q - smooth) * tc)
                 sm[r] = acc
-            for r in range(nn):
-                nx[r] = sm[r]
-                if r > 0 and nx[r] <= nx[r - 1]:
-                    nx[r] = nx[r - 1] + 1e-3
+            nx[0] = sm[0]
+            for r in range(1, nn):
+                nx[r] = nx[r - 1] + 1e-3 if sm[r] <= nx[r - 1] else sm[r]
         xa = int(np.ceil(left[i0]))
         xb = int(np.floor(right[i1]))
         if xa < 0:
@@ -558,8 +575,8 @@ def _label_row(
         if use_range:
             # each node (stripe edge or centre) votes for the copies that put its column inside the
             # depth-range interval of its pixel; the chain takes the clear winner, else no value
-            span = period * sw
-            inv_span = 1.0 / span  # a multiply, not a division (exact for the usual power-of-2 span)
+            copy_span = period * sw
+            inv_span = 1.0 / copy_span  # a multiply, not a division (exact for the usual power-of-2 span)
             pw = proj_w - 0.5
             for q in range(n_copies):
                 votes[q] = 0
@@ -576,7 +593,7 @@ def _label_row(
                 q = int(np.ceil((lo[y, xr] - v) * inv_span))
                 if q < 0:
                     q = 0
-                while q < n_copies and v + q * span <= hv:
+                while q < n_copies and v + q * copy_span <= hv:
                     votes[q] += 1
                     q += 1
             best_q = -1
@@ -592,30 +609,37 @@ def _label_row(
                     second_n = cnt
             if best_q < 0 or best_n < min_frac * nn or second_n > 0.5 * best_n:
                 continue
-            shift = best_q * span
+            shift = best_q * copy_span
         # pixels of the end stripes lie within one stripe of the outer edges; beyond is a guess
         lo_v = nv[0] - END_EXT * sw if edges_mode else nv[0] - 0.5 * sw
         hi_v = nv[nn - 1] + END_EXT * sw if edges_mode else nv[nn - 1] + 0.5 * sw
         # per-node slopes once per chain (sm is free after smoothing): no division per pixel
         for r in range(nn - 1):
             sm[r] = (nv[r + 1] - nv[r]) / (nx[r + 1] - nx[r])
+        # pixel xx takes the segment after the last interior node left of it (the first segment extends left,
+        # the last right): count the interior nodes at the first pixel right of each, then a running sum gives
+        # each pixel's segment (stepping a segment index per pixel would chain every pixel through a load)
+        nxp = xb - xa + 1
+        cnt = tl  # free once the windows are looked up
+        for q in range(nxp + 1):
+            cnt[q] = 0
+        for r in range(1, nn - 1):
+            q = int(np.floor(nx[r])) + 1 - xa
+            cnt[min(max(q, 0), nxp)] += 1
         seg = 0
-        slope = sm[0]
-        x_next = nx[1] if nn > 2 else np.inf
         for xx in range(xa, xb + 1):
-            if xx > x_next:
-                while seg + 2 < nn and xx > nx[seg + 1]:
-                    seg += 1
-                slope = sm[seg]
-                x_next = nx[seg + 1] if seg + 2 < nn else np.inf
-            v = nv[seg] + (xx - nx[seg]) * slope
-            if v < lo_v or v > hi_v:
-                continue
+            seg += cnt[xx - xa]
+            v = nv[seg] + (xx - nx[seg]) * sm[seg]
+            ok = (v >= lo_v) & (v <= hi_v)
             v += shift
-            if use_range and (v < lo[y, xx] or v > hi[y, xx]):
-                continue
-            out_col[y, xx] = v
-            out_chain[y, xx] = n_chains
+            if use_range:
+                ok &= (v >= lo[y, xx]) & (v <= hi[y, xx])
+            if ok:
+                out_col[y, xx] = v
+                out_chain[y, xx] = n_chains
+        if n_chains < span.shape[0]:
+            span[n_chains, 0] = xa
+            span[n_chains, 1] = xb
         n_chains += 1
     return n_chains
 
@@ -661,6 +685,7 @@ def label_rows(
     es = np.empty((m, n), np.int64)
     et = np.empty((m, n), np.int64)
     cnt = np.zeros(m, np.int64)
+    no_span = np.empty((0, 2), np.int32)
     n_chains = 0
     for y in range(H):
         if events:
@@ -700,6 +725,7 @@ def label_rows(
             out_col,
             out_chain,
             n_chains,
+            no_span,
         )
     return n_chains
 
@@ -988,15 +1014,16 @@ def twoshot_rows(
     et = np.empty((m, n), np.int64)
     cnt = np.zeros(m, np.int64)
     cap = H * (n // k + 2)  # at most this many chains: each holds k runs of a row
-    agree_e = np.zeros(cap, np.int32)
-    dis_e = np.zeros(cap, np.int32)
-    npx_e = np.zeros(cap, np.int32)
+    # per-chain counts and spans, each written before it is read (_label_row, _row_votes): no zeroing
+    agree_e = np.empty(cap, np.int32)
+    dis_e = np.empty(cap, np.int32)
+    npx_e = np.empty(cap, np.int32)
     cap_r = cap if mode == 2 else 1  # the runs map of "both" only
-    agree_r = np.zeros(cap_r, np.int32)
-    dis_r = np.zeros(cap_r, np.int32)
-    npx_r = np.zeros(cap_r, np.int32)
-    span_e = np.zeros((cap, 2), np.int32)
-    span_r = np.zeros((cap_r, 2), np.int32)
+    agree_r = np.empty(cap_r, np.int32)
+    dis_r = np.empty(cap_r, np.int32)
+    npx_r = np.empty(cap_r, np.int32)
+    span_e = np.empty((cap, 2), np.int32)
+    span_r = np.empty((cap_r, 2), np.int32)
     first_e = np.zeros(H + 1, np.int64)  # chains of row y are first_e[y] .. first_e[y + 1] - 1
     first_r = np.zeros(H + 1, np.int64)
     check = tol > 0
@@ -1011,20 +1038,20 @@ def twoshot_rows(
             nr = _event_runs(fr, tr, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right)
         n_e = _label_row(
             y, nr, rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, table, A, k, period, sw,
-            n_copies, proj_w, lo, hi, use_range, edges_mode, min_frac, smooth, sm, votes, col_e, chain_e, n_e,
+            n_copies, proj_w, lo, hi, use_range, edges_mode, min_frac, smooth, sm, votes, col_e, chain_e, n_e, span_e,
         )  # fmt: skip
         if mode == 2:
             nr = _pixel_runs(code, fr, wts, link_ok, gap_max, rs, re, rc, link, edge, left, right)
             n_r = _label_row(
                 y, nr, rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, table, A, k, period, sw,
-                n_copies, proj_w, lo, hi, use_range, edges_mode, min_frac, smooth, sm, votes, col_r, chain_r, n_r,
+                n_copies, proj_w, lo, hi, use_range, edges_mode, min_frac, smooth, sm, votes, col_r, chain_r, n_r, span_r,
             )  # fmt: skip
         first_e[y + 1] = n_e
         first_r[y + 1] = n_r
-        if check:
-            _row_votes(col_e, chain_e, y, tol, agree_e, dis_e, npx_e, span_e)
+        if check or mode == 2:  # (_finish_row reads the pixel counts even without the check)
+            _row_votes(col_e, chain_e, y, tol, agree_e, dis_e, npx_e, first_e, span_e)
             if mode == 2:
-                _row_votes(col_r, chain_r, y, tol, agree_r, dis_r, npx_r, span_r)
+                _row_votes(col_r, chain_r, y, tol, agree_r, dis_r, npx_r, first_r, span_r)
         for yy in range(y - 1, y + 1 if y == H - 1 else y):
             if yy < 0:
                 continue
@@ -1057,30 +1084,40 @@ def _row_scratch(n, W, n_copies):
     return rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, votes
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _row_votes(col, chain, y, tol, agree, disagree, npx, span):
-    """Count row y's pixels per chain, and its agreement with row y - 1 for the chains of both rows.
-    span[c] = (first, last) pixel of chain c."""
-    W = col.shape[1]
-    for x in range(W):
-        c = chain[y, x]
-        if c < 0:
-            continue
-        if npx[c] == 0:
-            span[c, 0] = x
-        npx[c] += 1
-        span[c, 1] = x
-        if y == 0:
-            continue
-        cu = chain[y - 1, x]
-        if cu < 0:
-            continue
-        if abs(col[y - 1, x] - col[y, x]) <= tol:
-            agree[c] += 1
-            agree[cu] += 1
-        else:
-            disagree[c] += 1
-            disagree[cu] += 1
+@njit(cache=True, nogil=True, error_model="numpy")
+def _row_votes(col, chain, y, tol, agree, disagree, npx, first, span):
+    """Count the pixels of row y's chains, and the agreement between rows y - 1 and y for the chains of both.
+
+    Walks each chain's span (from _label_row) with the counts in registers, then adds them once per chain:
+    a per-pixel increment of a per-chain counter chains every pixel of a chain through memory."""
+    for c in range(first[y], first[y + 1]):
+        n = 0
+        ag = 0
+        dg = 0
+        for x in range(span[c, 0], span[c, 1] + 1):
+            mine = chain[y, x] == c
+            n += mine
+            if y > 0:
+                pair = mine & (chain[y - 1, x] >= 0)
+                close = abs(col[y - 1, x] - col[y, x]) <= tol
+                ag += pair & close
+                dg += pair & (not close)
+        npx[c] = n  # the chain's first counts: the arrays need no zeroing
+        agree[c] = ag
+        disagree[c] = dg
+    if y == 0:
+        return
+    # the same pixel pairs, counted for the chains of row y - 1
+    for c in range(first[y - 1], first[y]):
+        ag = 0
+        dg = 0
+        for x in range(span[c, 0], span[c, 1] + 1):
+            pair = (chain[y - 1, x] == c) & (chain[y, x] >= 0)
+            close = abs(col[y - 1, x] - col[y, x]) <= tol
+            ag += pair & close
+            dg += pair & (not close)
+        agree[c] += ag
+        disagree[c] += dg
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
