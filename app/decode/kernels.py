@@ -542,9 +542,8 @@ def _label_row(
             # usual +-2 written out, so the loop over nodes has no inner loop and is vectorised
             if smooth == 2:
                 for r in range(2, nn - 2):
-                    sm[r] = (
-                        0.0 + nx[r - 2] * inv_nw + nx[r - 1] * inv_nw + nx[r] * inv_nw + nx[r + 1] * inv_nw
-                    ) + nx[r + 2] * inv_nw
+                    acc = 0.0 + nx[r - 2] * inv_nw + nx[r - 1] * inv_nw + nx[r] * inv_nw
+                    sm[r] = acc + nx[r + 1] * inv_nw + nx[r + 2] * inv_nw
             else:
                 for r in range(smooth, nn - smooth):
                     acc = 0.0
@@ -1043,8 +1042,8 @@ def twoshot_rows(
         if mode == 2:
             nr = _pixel_runs(code, fr, wts, link_ok, gap_max, rs, re, rc, link, edge, left, right)
             n_r = _label_row(
-                y, nr, rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, table, A, k, period, sw,
-                n_copies, proj_w, lo, hi, use_range, edges_mode, min_frac, smooth, sm, votes, col_r, chain_r, n_r, span_r,
+                y, nr, rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, table, A, k, period, sw, n_copies,
+                proj_w, lo, hi, use_range, edges_mode, min_frac, smooth, sm, votes, col_r, chain_r, n_r, span_r,
             )  # fmt: skip
         first_e[y + 1] = n_e
         first_r[y + 1] = n_r
