@@ -419,6 +419,39 @@ def _event_runs(fr, tr, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, 
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _window_positions(nr, rc, link, table, A, k, pos):
+    """pos[j] = the sequence position of the window of runs j..j+k-1 (its key sum_t rc[j + t] * A**t through
+    the table), -1 where the window is not k linked runs or not in the sequence.
+
+    Each window's key and link count from its own k runs: no run depends on the one before, so the loop
+    over windows is vectorised (the usual k = 7 written out; a rolled key chains every run through a
+    multiply)."""
+    nw = nr - k + 1
+    if k == 7:
+        A2 = A * A
+        A3 = A2 * A
+        A4 = A3 * A
+        A5 = A4 * A
+        A6 = A5 * A
+        for j in range(nw):
+            key = rc[j] + rc[j + 1] * A + rc[j + 2] * A2 + rc[j + 3] * A3 + rc[j + 4] * A4 + rc[j + 5] * A5
+            key += rc[j + 6] * A6
+            nl = np.int64(link[j]) + link[j + 1] + link[j + 2] + link[j + 3] + link[j + 4] + link[j + 5]
+            pos[j] = table[key] if nl == 6 else -1
+    else:
+        for j in range(nw):
+            key = 0
+            nl = 0
+            for t in range(k - 1, -1, -1):
+                key = key * A + rc[j + t]
+            for t in range(k - 1):
+                nl += link[j + t]
+            pos[j] = table[key] if nl == k - 1 else -1
+    for j in range(max(nw, 0), nr):
+        pos[j] = -1
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _label_row(
     y,
     nr,
@@ -461,23 +494,7 @@ def _label_row(
     W = out_col.shape[1]
     if nr < k:
         return n_chains
-    tl[nr] = 0
-    for j in range(nr - 1, -1, -1):
-        tl[j] = tl[j + 1] + 1 if link[j] else 0
-    # the window key sum_t rc[j + t] * A**t, rolled from j + 1 down to j (one multiply-add per run)
-    top = 1
-    for _t in range(k - 1):
-        top *= A
-    key = 0
-    for t in range(k - 1, -1, -1):
-        key = key * A + rc[nr - k + t]
-    for j in range(nr - 1, -1, -1):
-        pos[j] = -1
-        if j + k <= nr:
-            if j + k < nr:
-                key = (key - rc[j + k] * top) * A + rc[j]
-            if tl[j] >= k - 1:
-                pos[j] = table[key]
+    _window_positions(nr, rc, link, table, A, k, pos)
     for i in range(nr):
         lab[i] = -1
     for j in range(nr):
@@ -619,15 +636,15 @@ def _label_row(
         # the last right): count the interior nodes at the first pixel right of each, then a running sum gives
         # each pixel's segment (stepping a segment index per pixel would chain every pixel through a load)
         nxp = xb - xa + 1
-        cnt = tl  # free once the windows are looked up
+        seg_steps = tl  # free once the windows are looked up
         for q in range(nxp + 1):
-            cnt[q] = 0
+            seg_steps[q] = 0
         for r in range(1, nn - 1):
             q = int(np.floor(nx[r])) + 1 - xa
-            cnt[min(max(q, 0), nxp)] += 1
+            seg_steps[min(max(q, 0), nxp)] += 1
         seg = 0
         for xx in range(xa, xb + 1):
-            seg += cnt[xx - xa]
+            seg += seg_steps[xx - xa]
             v = nv[seg] + (xx - nx[seg]) * sm[seg]
             ok = (v >= lo_v) & (v <= hi_v)
             v += shift
