@@ -184,9 +184,34 @@ def oneshot_classify(img, unmix, colour_rows, t_abs, t_margin, block, use_hue, c
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _pixel_runs(code, fr, wts, link_ok, gap_max, rs, re, rc, link, edge, left, right):
+def _transitions(wts, link_ok):
+    """Per code transition t = a * A + b: whether it can link two runs, the first channel of its edge signal
+    (wts[a, b]), that channel's weight, and whether more channels weigh in (one-shot)."""
+    A = wts.shape[0]
+    C = wts.shape[2]
+    ok = np.zeros(A * A, np.bool_)
+    ch = np.zeros(A * A, np.int64)
+    w = np.zeros(A * A, np.float32)
+    more = np.zeros(A * A, np.bool_)
+    for a in range(A):
+        for b in range(A):
+            t = a * A + b
+            cs = 0
+            while cs + 1 < C and wts[a, b, cs] == 0:
+                cs += 1
+            ok[t] = link_ok[a, b]
+            ch[t] = cs
+            w[t] = wts[a, b, cs]
+            for c in range(cs + 1, C):
+                if wts[a, b, c] != 0:
+                    more[t] = True
+    return ok, ch, w, more
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge, left, right):
     """Runs of equal code along a row (code (W,), differences fr (C, W)); link and sub-pixel edge (zero
-    crossing) between neighbours."""
+    crossing) between neighbours. trans: _transitions(wts, link_ok). rc needs room for 2 W + 1 values."""
     W = code.shape[0]
     C = fr.shape[0]
     # every code change opens a candidate run at rs[nr] without a branch (runs change every ~2 px, so
@@ -209,35 +234,30 @@ def _pixel_runs(code, fr, wts, link_ok, gap_max, rs, re, rc, link, edge, left, r
     for j in range(nr):
         left[j] = rs[j] - 0.5
         right[j] = re[j] + 0.5
-    # the edge signal of each transition a -> b: its first weighted channel, and whether it has more
+    t_ok, t_ch, t_w, t_more = trans
     A = wts.shape[0]
-    first_c = np.zeros((A, A), np.int64)
-    more = np.zeros((A, A), np.bool_)
-    for a in range(A):
-        for b in range(A):
-            cs = 0
-            while cs + 1 < C and wts[a, b, cs] == 0:
-                cs += 1
-            first_c[a, b] = cs
-            for c in range(cs + 1, C):
-                if wts[a, b, c] != 0:
-                    more[a, b] = True
+    # every link's edge as if its runs were adjacent (the usual case) without a branch; the rest are searched
+    # below. Adjacent runs' pixels all have a sign, so when the edge signal falls from > 0 to <= 0 between
+    # them, that is the only zero crossing the search would find. (rc's tail holds the runs to search.)
+    slow = rc[W + 1 :]
+    n_slow = 0
     for j in range(nr - 1):
-        a = rc[j]
-        b = rc[j + 1]
-        link[j] = (rs[j + 1] - re[j] - 1 <= gap_max) & link_ok[a, b]
-        if not link[j]:
-            continue
-        cs = first_c[a, b]
-        w = wts[a, b, cs]
-        if rs[j + 1] == re[j] + 1 and not more[a, b]:
-            # adjacent runs (the usual case): both runs' pixels have a sign, so when the edge signal falls from
-            # > 0 to <= 0 between them, that is the only zero crossing the search below would find
-            s0 = 0.0 + w * fr[cs, re[j]]
-            s1 = 0.0 + w * fr[cs, rs[j + 1]]
-            if s0 > 0 and s1 <= 0:
-                edge[j] = re[j] + s0 / (s0 - s1)
-                continue
+        t = rc[j] * A + rc[j + 1]
+        lk = (rs[j + 1] - re[j] - 1 <= gap_max) & t_ok[t]
+        cs = t_ch[t]
+        w = t_w[t]
+        s0 = 0.0 + w * fr[cs, re[j]]
+        s1 = 0.0 + w * fr[cs, rs[j + 1]]
+        edge[j] = re[j] + s0 / (s0 - s1)
+        link[j] = lk
+        fast = (rs[j + 1] == re[j] + 1) & (not t_more[t]) & (s0 > 0) & (s1 <= 0)
+        slow[n_slow] = j
+        n_slow += lk & (not fast)
+    for i in range(n_slow):
+        j = slow[i]
+        t = rc[j] * A + rc[j + 1]
+        cs = t_ch[t]
+        w = t_w[t]
         xa = re[j] - 1 if re[j] - 1 >= rs[j] else re[j]
         xb = rs[j + 1] + 1 if rs[j + 1] + 1 <= re[j + 1] else rs[j + 1]
         mid = 0.5 * (re[j] + rs[j + 1])
@@ -245,14 +265,16 @@ def _pixel_runs(code, fr, wts, link_ok, gap_max, rs, re, rc, link, edge, left, r
         bestd = 1e9
         # two-shot: linked stripes differ in one channel (link_ok), so the edge signal is that channel's d,
         # signed; one-shot: the difference of the two stripes' colours
+        a = rc[j]
+        b = rc[j + 1]
         s1 = 0.0 + w * fr[cs, xa]
-        if more[a, b]:
+        if t_more[t]:
             for c in range(cs + 1, C):
                 s1 += wts[a, b, c] * fr[c, xa]
         for xx in range(xa, xb):
             s0 = s1
             s1 = 0.0 + w * fr[cs, xx + 1]
-            if more[a, b]:
+            if t_more[t]:
                 for c in range(cs + 1, C):
                     s1 += wts[a, b, c] * fr[c, xx + 1]
             if s0 > 0 and s1 <= 0:
@@ -703,11 +725,12 @@ def label_rows(
     cnt = np.zeros(m, np.int64)
     no_span = np.empty((0, 2), np.int32)
     n_chains = 0
+    trans = _transitions(wts, link_ok)
     for y in range(H):
         if events:
             nr = _event_runs(feat[y].T, noise[y].T, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right)
         else:
-            nr = _pixel_runs(code[y], feat[y].T, wts, link_ok, gap_max, rs, re, rc, link, edge, left, right)
+            nr = _pixel_runs(code[y], feat[y].T, wts, trans, gap_max, rs, re, rc, link, edge, left, right)
         n_chains = _label_row(
             y,
             nr,
@@ -1043,13 +1066,14 @@ def twoshot_rows(
     first_e = np.zeros(H + 1, np.int64)  # chains of row y are first_e[y] .. first_e[y + 1] - 1
     first_r = np.zeros(H + 1, np.int64)
     check = tol > 0
+    trans = _transitions(wts, link_ok)
     n_e = 0
     n_r = 0
     stats = np.zeros(4, np.int64)  # dropped events, dropped runs, filled, clashes
     for y in range(H):
         _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, mode != 1, code)
         if mode == 1:
-            nr = _pixel_runs(code, fr, wts, link_ok, gap_max, rs, re, rc, link, edge, left, right)
+            nr = _pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge, left, right)
         else:
             nr = _event_runs(fr, tr, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right)
         n_e = _label_row(
@@ -1057,7 +1081,7 @@ def twoshot_rows(
             n_copies, proj_w, lo, hi, use_range, edges_mode, min_frac, smooth, sm, votes, col_e, chain_e, n_e, span_e,
         )  # fmt: skip
         if mode == 2:
-            nr = _pixel_runs(code, fr, wts, link_ok, gap_max, rs, re, rc, link, edge, left, right)
+            nr = _pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge, left, right)
             n_r = _label_row(
                 y, nr, rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, table, A, k, period, sw, n_copies,
                 proj_w, lo, hi, use_range, edges_mode, min_frac, smooth, sm, votes, col_r, chain_r, n_r, span_r,
