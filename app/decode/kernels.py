@@ -827,7 +827,8 @@ def vertical_check(out_col, out_chain, n_chains, tol, min_support):
 @njit(cache=True, nogil=True, error_model="numpy")
 def _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, want_thr, code):
     """twoshot_classify for row y of the frames: codes into code (W,), the unmixed differences into
-    tmp[0:m] and, with want_thr, the zero-crossing sign thresholds into tmp[m:2m] (tmp is (2m, W)).
+    tmp[0:m] and, with want_thr, the zero-crossing sign thresholds into tmp[m:2m] (tmp is (2m + 2, W); the
+    last two rows are scratch).
 
     Same arithmetic in three simple loops: differences and noise floors into the contiguous rows of
     tmp, block maxima, then thresholds. Coefficients live in locals and each loop writes one kind of
@@ -867,27 +868,37 @@ def _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, 
             m1 = max(m1, abs(fv1[x]))
         bm0[b + 1] = m0
         bm1[b + 1] = m1
+    # the local amplitude, max |d| over a block and its two neighbours, times t_rel: spread over the block's
+    # pixels first, so the per-pixel loop below reads plain rows and is vectorised (a block index per pixel
+    # kept it scalar, at five times the time)
+    q0 = tmp[4]
+    q1 = tmp[5]
     for b in range(nb):
-        # the local amplitude: max |d| over this block and its two neighbours
-        a0 = max(bm0[b + 1], max(bm0[b], bm0[b + 2]))
-        a1 = max(bm1[b + 1], max(bm1[b], bm1[b + 2]))
-        tr0 = t_rel * a0
-        tr1 = t_rel * a1
-        te0 = t_rel_edge * a0
-        te1 = t_rel_edge * a1
-        x0 = b * block
-        x1 = min(W, x0 + block)
-        for x in range(x0, x1):
-            d0 = fv0[x]
-            d1 = fv1[x]
-            n0 = nz0[x]
-            n1 = nz1[x]
-            # bitwise & and arithmetic, not `and`/`if`: no branch per pixel (signs flip every few pixels)
-            ok = (abs(d0) >= max(tr0, n0)) & (abs(d1) >= max(tr1, n1))
-            bits = np.int8(d0 < 0) | (np.int8(d1 < 0) << 1)
-            code[x] = (bits + 1) * np.int8(ok) - 1
-        if want_thr:
-            for x in range(x0, x1):
+        tr0 = t_rel * max(bm0[b + 1], max(bm0[b], bm0[b + 2]))
+        tr1 = t_rel * max(bm1[b + 1], max(bm1[b], bm1[b + 2]))
+        for x in range(b * block, min(W, (b + 1) * block)):
+            q0[x] = tr0
+            q1[x] = tr1
+    for x in range(W):
+        d0 = fv0[x]
+        d1 = fv1[x]
+        t0 = q0[x]
+        t1 = q1[x]
+        n0 = nz0[x]
+        n1 = nz1[x]
+        t0 = t0 if t0 >= n0 else n0
+        t1 = t1 if t1 >= n1 else n1
+        # bitwise & and a select, not `and`/`if`: no branch per pixel (signs flip every few pixels)
+        ok = (abs(d0) >= t0) & (abs(d1) >= t1)
+        bits = np.int32(d0 < 0) + 2 * np.int32(d1 < 0)
+        code[x] = np.int8(bits if ok else -1)
+    if want_thr:
+        for b in range(nb):
+            a0 = max(bm0[b + 1], max(bm0[b], bm0[b + 2]))
+            a1 = max(bm1[b + 1], max(bm1[b], bm1[b + 2]))
+            te0 = t_rel_edge * a0
+            te1 = t_rel_edge * a1
+            for x in range(b * block, min(W, (b + 1) * block)):
                 nz0[x] = max(te0, nz0[x])  # the zero-crossing segmentation's sign thresholds
                 nz1[x] = max(te1, nz1[x])
 
@@ -1042,7 +1053,8 @@ def twoshot_rows(
     A = link_ok.shape[0]
     nb = (W + block - 1) // block
     bmax = np.empty((m, nb + 2), np.float32)
-    tmp = np.empty((2 * m, W), np.float32)  # the row's differences (0..m-1) and sign thresholds (m..2m-1)
+    # the row's differences (0..m-1), sign thresholds (m..2m-1) and _classify_row's scratch
+    tmp = np.empty((2 * m + 2, W), np.float32)
     fr = tmp[:m]
     tr = tmp[m:]
     code = np.empty(W, np.int8)
