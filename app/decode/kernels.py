@@ -209,7 +209,7 @@ def _transitions(wts, link_ok):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge, left, right):
+def _pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge):
     """Runs of equal code along a row (code (W,), differences fr (C, W)); link and sub-pixel edge (zero
     crossing) between neighbours. trans: _transitions(wts, link_ok). rc needs room for 2 W + 1 values."""
     W = code.shape[0]
@@ -231,9 +231,6 @@ def _pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge, left, rig
         rc[nr] = c
         re[nr] = (rs[j + 1] if j + 1 < nb else W) - 1
         nr += c >= 0
-    for j in range(nr):
-        left[j] = rs[j] - 0.5
-        right[j] = re[j] + 0.5
     t_ok, t_ch, t_w, t_more = trans
     A = wts.shape[0]
     # every link's edge as if its runs were adjacent (the usual case) without a branch; the rest are searched
@@ -482,8 +479,6 @@ def _label_row(
     rc,
     link,
     edge,
-    left,
-    right,
     tl,
     pos,
     lab,
@@ -601,8 +596,8 @@ def _label_row(
             nx[0] = sm[0]
             for r in range(1, nn):
                 nx[r] = nx[r - 1] + 1e-3 if sm[r] <= nx[r - 1] else sm[r]
-        xa = int(np.ceil(left[i0]))
-        xb = int(np.floor(right[i1]))
+        xa = rs[i0]  # the first and last whole pixel of the chain's end stripes
+        xb = re[i1]
         if xa < 0:
             xa = 0
         if xb > W - 1:
@@ -730,7 +725,7 @@ def label_rows(
         if events:
             nr = _event_runs(feat[y].T, noise[y].T, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right)
         else:
-            nr = _pixel_runs(code[y], feat[y].T, wts, trans, gap_max, rs, re, rc, link, edge, left, right)
+            nr = _pixel_runs(code[y], feat[y].T, wts, trans, gap_max, rs, re, rc, link, edge)
         n_chains = _label_row(
             y,
             nr,
@@ -739,8 +734,6 @@ def label_rows(
             rc,
             link,
             edge,
-            left,
-            right,
             tl,
             pos,
             lab,
@@ -1085,17 +1078,17 @@ def twoshot_rows(
     for y in range(H):
         _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, mode != 1, code)
         if mode == 1:
-            nr = _pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge, left, right)
+            nr = _pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge)
         else:
             nr = _event_runs(fr, tr, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right)
         n_e = _label_row(
-            y, nr, rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, table, A, k, period, sw,
+            y, nr, rs, re, rc, link, edge, tl, pos, lab, nx, nv, table, A, k, period, sw,
             n_copies, proj_w, lo, hi, use_range, edges_mode, min_frac, smooth, sm, votes, col_e, chain_e, n_e, span_e,
         )  # fmt: skip
         if mode == 2:
-            nr = _pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge, left, right)
+            nr = _pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge)
             n_r = _label_row(
-                y, nr, rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, table, A, k, period, sw, n_copies,
+                y, nr, rs, re, rc, link, edge, tl, pos, lab, nx, nv, table, A, k, period, sw, n_copies,
                 proj_w, lo, hi, use_range, edges_mode, min_frac, smooth, sm, votes, col_r, chain_r, n_r, span_r,
             )  # fmt: skip
         first_e[y + 1] = n_e
