@@ -1135,16 +1135,20 @@ def _row_votes(col, chain, y, tol, agree, disagree, npx, first, span):
 
     Walks each chain's span (from _label_row) with the counts in registers, then adds them once per chain:
     a per-pixel increment of a per-chain counter chains every pixel of a chain through memory."""
+    tol32 = np.float32(tol)  # compared with float32 differences without a conversion per pixel
     for c in range(first[y], first[y + 1]):
         n = 0
         ag = 0
         dg = 0
-        for x in range(span[c, 0], span[c, 1] + 1):
-            mine = chain[y, x] == c
-            n += mine
-            if y > 0:
+        if y == 0:
+            for x in range(span[c, 0], span[c, 1] + 1):
+                n += chain[y, x] == c
+        else:
+            for x in range(span[c, 0], span[c, 1] + 1):
+                mine = chain[y, x] == c
+                n += mine
                 pair = mine & (chain[y - 1, x] >= 0)
-                close = abs(col[y - 1, x] - col[y, x]) <= tol
+                close = abs(col[y - 1, x] - col[y, x]) <= tol32
                 ag += pair & close
                 dg += pair & (not close)
         npx[c] = n  # the chain's first counts: the arrays need no zeroing
@@ -1158,7 +1162,7 @@ def _row_votes(col, chain, y, tol, agree, disagree, npx, first, span):
         dg = 0
         for x in range(span[c, 0], span[c, 1] + 1):
             pair = (chain[y - 1, x] == c) & (chain[y, x] >= 0)
-            close = abs(col[y - 1, x] - col[y, x]) <= tol
+            close = abs(col[y - 1, x] - col[y, x]) <= tol32
             ag += pair & close
             dg += pair & (not close)
         agree[c] += ag
