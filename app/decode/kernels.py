@@ -1038,7 +1038,8 @@ def twoshot_rows(
     its vertical votes once row y is labelled. The merged map is written into col_e/chain_e and conf;
     a value filled from the runs map gets chain id (runs chain + cap). tol <= 0 skips the vertical check.
     mode: 0 = the zero-crossing stripes alone ("events"), 1 = the pixel runs alone ("runs", into col_e/chain_e),
-    2 = both merged ("both"); col_r/chain_r are only used by mode 2.
+    2 = both merged ("both"); col_r/chain_r are only used by mode 2. The maps need no initialisation, and
+    conf (1 where a value, else 0) is written in every mode.
     Returns (events chains, runs chains, events dropped, runs dropped, filled, clashes).
     """
     H, W = col_e.shape
@@ -1076,6 +1077,12 @@ def twoshot_rows(
     n_r = 0
     stats = np.zeros(4, np.int64)  # dropped events, dropped runs, filled, clashes
     for y in range(H):
+        # the maps come uninitialised: each row is cleared just before it is labelled (while it is in cache)
+        col_e[y] = np.nan
+        chain_e[y] = -1
+        if mode == 2:
+            col_r[y] = np.nan
+            chain_r[y] = -1
         _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, mode != 1, code)
         if mode == 1:
             nr = _pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge)
@@ -1103,9 +1110,12 @@ def twoshot_rows(
             if mode == 2:
                 _finish_row(yy, col_e, chain_e, col_r, chain_r, conf, first_e, first_r, agree_e, dis_e, npx_e,
                             agree_r, dis_r, npx_r, check, min_support, cap, stats)  # fmt: skip
-            elif check:
-                # one map: only the dropped chains' pixels change (conf is set by the caller)
-                stats[0] += _drop_chains(yy, col_e, chain_e, first_e, agree_e, dis_e, npx_e, span_e, min_support)
+            else:
+                # one map: only the dropped chains' pixels change; then the row's confidence is whether it has a value
+                if check:
+                    stats[0] += _drop_chains(yy, col_e, chain_e, first_e, agree_e, dis_e, npx_e, span_e, min_support)
+                for x in range(W):
+                    conf[yy, x] = np.float32(np.isfinite(col_e[yy, x]))
     return n_e, n_r, stats[0], stats[1], stats[2], stats[3]
 
 

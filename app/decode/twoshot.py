@@ -150,13 +150,14 @@ class TwoShotDecoder:
         lin, dlin = self.luts(frame1.dtype)
         use_range = self.column_range is not None
         lo, hi = self.column_range if use_range else (EMPTY_RANGE, EMPTY_RANGE)
-        col_e = np.full((H, W), np.nan, np.float32)
-        chain_e = np.full((H, W), -1, np.int32)
+        # all written by the kernel, row by row
+        col_e = np.empty((H, W), np.float32)
+        chain_e = np.empty((H, W), np.int32)
+        conf = np.empty((H, W), np.float32)
         both = p.segmentation == "both"
         # the second map and the merge are used by "both" only
-        col_r = np.full((H, W), np.nan, np.float32) if both else EMPTY_RANGE
-        chain_r = np.full((H, W), -1, np.int32) if both else np.full((1, 1), -1, np.int32)
-        conf = np.empty((H, W), np.float32) if both else EMPTY_RANGE
+        col_r = np.empty((H, W), np.float32) if both else EMPTY_RANGE
+        chain_r = np.empty((H, W), np.int32) if both else np.full((1, 1), -1, np.int32)
         n_e, n_r, drop_e, drop_r, filled, clashes = kernels.twoshot_rows(
             frame1,
             frame2,
@@ -191,8 +192,6 @@ class TwoShotDecoder:
             chain_r,
             conf,
         )
-        if not both:
-            conf = np.isfinite(col_e).astype(np.float32)
         return StripeMap(
             col_e,
             conf,
