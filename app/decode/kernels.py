@@ -8,11 +8,14 @@ allowed transition); a *window* is k linked runs, identified through a lookup ta
 *confirmed* when an adjacent window agrees with it; a *chain* is a row segment of consecutively
 labelled, linked runs, from which the columns are interpolated between sub-pixel stripe edges.
 
-The two-shot default path is `twoshot_rows` + `vertical_merge`: one pass per row over the frames
-into one-row buffers, no full-image codes or differences. Measured lessons on this machine: a
-numba helper called per pixel (not per row) cost ~80 ns a call, and float32 output buffers next to
-float32 tables make the compiler reload the tables after every store; keep per-pixel work inline
-with coefficients in locals.
+The two-shot path is `twoshot_rows`: one pass per row over the frames into one-row buffers (classify,
+runs, labels, the vertical check two rows behind), no full-image codes or differences. Measured
+lessons on this machine: a numba helper called per pixel (not per row) cost ~80 ns a call, and
+float32 output buffers next to float32 tables make the compiler reload the tables after every store;
+keep per-pixel work inline with coefficients in locals. The compiler vectorises a loop only when each
+iteration is independent and reads plain rows: no index computed per element (x // block), no value
+carried from the iteration before through memory (a counter array incremented per pixel, a segment
+index stepped by a load), no table lookups (it emits no gathers here). Such loops ran 3-5x faster.
 """
 
 from __future__ import annotations
