@@ -84,7 +84,7 @@ def _depth_from_column_moebius(column, ca, cb, cc, w0, w_span, depth):
             u = column[y, x]
             n = u - ca[y, x]
             den = cb[y, x] - cc[y, x] * u
-            inside = ((n >= 0) & (n <= den)) | ((n <= 0) & (n >= den))
+            inside = (((n >= 0) & (n <= den)) | ((n <= 0) & (n >= den))) & (den != 0)  # (0 / 0: no t)
             z = den / (w0f * den + n * wsf)
             depth[y, x] = z if inside else np.float32(0.0)
 

@@ -8,7 +8,7 @@ import pytest
 from synth import make_calibration
 
 from app.errors import InputError
-from app.triangulate import Triangulator
+from app.triangulate import Triangulator, _depth_from_column_moebius
 
 
 @pytest.fixture(scope="module")
@@ -101,3 +101,16 @@ def test_point_cloud_is_the_ray_scaled_by_depth(tri):
 def test_size_mismatch_is_an_input_error(tri):
     with pytest.raises(InputError, match="calibration camera"):
         tri.depth(np.zeros((10, 10), np.float32))
+
+
+def test_closed_form_pass_gives_no_depth_where_the_column_has_none():
+    # u(t) = (a + b t) / (1 + c t): t = (u - a) / (b - c u) must lie in [0, 1]; Z = 1 / (w0 + t w_span)
+    w0, w_span = 1.0 / 1000.0, 1.0 / 600.0 - 1.0 / 1000.0
+    u = np.array([[5.0, 15.0, 10.0, np.nan, 4.0, 16.0, 5.0]], np.float32)
+    a = np.full(u.shape, 5.0, np.float32)
+    b = np.array([[10.0, 10.0, 10.0, 10.0, 10.0, 10.0, 0.0]], np.float32)  # last: b - c u = 0 at u = a
+    c = np.zeros(u.shape, np.float32)
+    out = np.empty(u.shape, np.float32)
+    _depth_from_column_moebius(u, a, b, c, w0, w_span, out)
+    expect = [1000.0, 600.0, 1.0 / (w0 + 0.5 * w_span), 0.0, 0.0, 0.0, 0.0]  # range ends, middle, NaN, outside, 0/0
+    assert np.allclose(out[0], expect, rtol=1e-6, atol=0.0)
