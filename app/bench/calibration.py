@@ -35,6 +35,18 @@ TARGETS = {
     "color_mixing_error": 0.03,
     "projector_gamma_error_pct": 3.0,
 }
+# the calibrated geometry's targets alone (what a capture of the poses is judged by, before plane checks)
+GEOMETRY_TARGETS = {
+    key: TARGETS[key]
+    for key in (
+        "camera_focal_error_pct",
+        "projector_focal_error_pct",
+        "camera_principal_error_px",
+        "projector_principal_error_px",
+        "baseline_error_mm",
+        "rotation_error_deg",
+    )
+}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

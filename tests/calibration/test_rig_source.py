@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from app.bench.calibration import GEOMETRY_TARGETS as TARGETS  # issue 7
 from app.config import load_config
 from calibration.auto import rig_board
 from calibration.capture import CaptureWriter, open_capture
@@ -19,15 +20,6 @@ from calibration.rig_source import RigBoardSource
 from calibration.sequence import PoseNotCapturedError, check_graycode, check_levels
 from calibration.session import solve_capture
 from calibration.validate import compare
-
-TARGETS = {  # issue 7
-    "camera_focal_error_pct": 0.5,
-    "projector_focal_error_pct": 0.5,
-    "camera_principal_error_px": 2.0,
-    "projector_principal_error_px": 2.0,
-    "baseline_error_mm": 0.5,
-    "rotation_error_deg": 0.1,
-}
 
 RIG_YAML = """\
 rig:
