@@ -16,12 +16,16 @@ keep per-pixel work inline with coefficients in locals. The compiler vectorises 
 iteration is independent and reads plain rows: no index computed per element (x // block), no value
 carried from the iteration before through memory (a counter array incremented per pixel, a segment
 index stepped by a load), no table lookups (it emits no gathers here). Such loops ran 3-5x faster.
+The one table-heavy loop, the two-shot differences, is written as explicit gathers (`app/decode/simd.py`).
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
+
+from app.decode.simd import LANES, differences16
 
 # Pixels beyond a chain's outer stripe edges keep a value up to this many stripes out (the end stripe's
 # own pixels; its far side is not measured, so beyond half a stripe is the blur of a shadow edge).
@@ -843,10 +847,7 @@ def _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, 
     fv1 = tmp[1]
     nz0 = tmp[2]
     nz1 = tmp[3]
-    _row_differences(
-        f1[y], f2[y], lin[0], lin[1], lin[2], dlin[0], dlin[1], dlin[2], unmix[0, 0], unmix[0, 1], unmix[0, 2],
-        unmix[1, 0], unmix[1, 1], unmix[1, 2], ta, fv0, fv1, nz0, nz1,
-    )  # fmt: skip
+    _differences(f1, f2, y, lin, dlin, unmix, ta, tmp)
     # block maxima of |d| at bmax[c, 1 + b], with zero guards at both ends
     bm0 = bmax[0]
     bm1 = bmax[1]
@@ -897,6 +898,48 @@ def _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, 
             for x in range(b * block, min(W, (b + 1) * block)):
                 nz0[x] = max(te0, nz0[x])  # the zero-crossing segmentation's sign thresholds
                 nz1[x] = max(te1, nz1[x])
+
+
+def _differences(f1, f2, y, lin, dlin, unmix, ta, tmp):
+    """Row y's unmixed differences and noise floors of the two pattern channels into tmp[0:4] (compiled only:
+    the overload below picks the gathers of simd.differences16 for C-contiguous frames and tables, else the loop)."""
+    raise NotImplementedError("numba only")
+
+
+def _c_array(t) -> bool:
+    return isinstance(t, types.Array) and t.layout == "C"
+
+
+@overload(_differences, jit_options={"cache": True, "nogil": True, "error_model": "numpy"})
+def _differences_impl(f1, f2, y, lin, dlin, unmix, ta, tmp):
+    if all(_c_array(t) for t in (f1, f2, lin, dlin, tmp)) and f1 == f2 and f1.dtype in (types.uint8, types.uint16):
+
+        def vector(f1, f2, y, lin, dlin, unmix, ta, tmp):
+            W = f1.shape[1]
+            a = f1[y]
+            b = f2[y]
+            lf = lin.reshape(lin.size)
+            df = dlin.reshape(dlin.size)
+            u00, u01, u02 = unmix[0, 0], unmix[0, 1], unmix[0, 2]
+            u10, u11, u12 = unmix[1, 0], unmix[1, 1], unmix[1, 2]
+            x = 0
+            while x + LANES <= W:
+                differences16(a, b, lf, df, u00, u01, u02, u10, u11, u12, ta, tmp, x)
+                x += LANES
+            _row_differences(
+                a[x:], b[x:], lin[0], lin[1], lin[2], dlin[0], dlin[1], dlin[2], u00, u01, u02, u10, u11, u12, ta,
+                tmp[0, x:], tmp[1, x:], tmp[2, x:], tmp[3, x:],
+            )  # fmt: skip
+
+        return vector
+
+    def scalar(f1, f2, y, lin, dlin, unmix, ta, tmp):
+        _row_differences(
+            f1[y], f2[y], lin[0], lin[1], lin[2], dlin[0], dlin[1], dlin[2], unmix[0, 0], unmix[0, 1], unmix[0, 2],
+            unmix[1, 0], unmix[1, 1], unmix[1, 2], ta, tmp[0], tmp[1], tmp[2], tmp[3],
+        )  # fmt: skip
+
+    return scalar
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
