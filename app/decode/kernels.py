@@ -855,7 +855,22 @@ def _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, 
     bm1[0] = 0.0
     bm0[nb + 1] = 0.0
     bm1[nb + 1] = 0.0
-    for b in range(nb):
+    # whole blocks of the usual 8 pixels written out (a loop of unknown length per block costs a vector
+    # loop's set-up and its scalar tail every 8 pixels); the rest, and other block sizes, in the loop
+    nb8 = W // 8 if block == 8 else 0
+    for b in range(nb8):
+        x0 = b * 8
+        m0 = max(
+            max(max(abs(fv0[x0]), abs(fv0[x0 + 1])), max(abs(fv0[x0 + 2]), abs(fv0[x0 + 3]))),
+            max(max(abs(fv0[x0 + 4]), abs(fv0[x0 + 5])), max(abs(fv0[x0 + 6]), abs(fv0[x0 + 7]))),
+        )
+        m1 = max(
+            max(max(abs(fv1[x0]), abs(fv1[x0 + 1])), max(abs(fv1[x0 + 2]), abs(fv1[x0 + 3]))),
+            max(max(abs(fv1[x0 + 4]), abs(fv1[x0 + 5])), max(abs(fv1[x0 + 6]), abs(fv1[x0 + 7]))),
+        )
+        bm0[b + 1] = m0
+        bm1[b + 1] = m1
+    for b in range(nb8, nb):
         x0 = b * block
         x1 = min(W, x0 + block)
         m0 = np.float32(0.0)
@@ -873,9 +888,28 @@ def _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, 
     for b in range(nb):
         tr0 = t_rel * max(bm0[b + 1], max(bm0[b], bm0[b + 2]))
         tr1 = t_rel * max(bm1[b + 1], max(bm1[b], bm1[b + 2]))
-        for x in range(b * block, min(W, (b + 1) * block)):
-            q0[x] = tr0
-            q1[x] = tr1
+        if b < nb8:
+            x0 = b * 8
+            q0[x0] = tr0
+            q0[x0 + 1] = tr0
+            q0[x0 + 2] = tr0
+            q0[x0 + 3] = tr0
+            q0[x0 + 4] = tr0
+            q0[x0 + 5] = tr0
+            q0[x0 + 6] = tr0
+            q0[x0 + 7] = tr0
+            q1[x0] = tr1
+            q1[x0 + 1] = tr1
+            q1[x0 + 2] = tr1
+            q1[x0 + 3] = tr1
+            q1[x0 + 4] = tr1
+            q1[x0 + 5] = tr1
+            q1[x0 + 6] = tr1
+            q1[x0 + 7] = tr1
+        else:
+            for x in range(b * block, min(W, (b + 1) * block)):
+                q0[x] = tr0
+                q1[x] = tr1
     for x in range(W):
         d0 = fv0[x]
         d1 = fv1[x]
@@ -910,7 +944,7 @@ def _c_array(t) -> bool:
     return isinstance(t, types.Array) and t.layout == "C"
 
 
-@overload(_differences, jit_options={"cache": True, "nogil": True, "error_model": "numpy"})
+@overload(_differences, jit_options={"nogil": True, "error_model": "numpy"})
 def _differences_impl(f1, f2, y, lin, dlin, unmix, ta, tmp):
     if all(_c_array(t) for t in (f1, f2, lin, dlin, tmp)) and f1 == f2 and f1.dtype in (types.uint8, types.uint16):
 
