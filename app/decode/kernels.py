@@ -25,7 +25,7 @@ import numpy as np
 from numba import njit, types
 from numba.extending import overload
 
-from app.decode.simd import LANES, differences16
+from app.decode.simd import GATHER_LANES, LANES, differences16, gather8
 
 # Pixels beyond a chain's outer stripe edges keep a value up to this many stripes out (the end stripe's
 # own pixels; its far side is not measured, so beyond half a stripe is the blur of a shadow edge).
@@ -191,15 +191,18 @@ def oneshot_classify(img, unmix, colour_rows, t_abs, t_margin, block, use_hue, c
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _transitions(wts, link_ok):
+def _transitions(wts, link_ok, n):
     """Per code transition t = a * A + b: whether it can link two runs, the first channel of its edge signal
-    (wts[a, b]), that channel's weight, and whether more channels weigh in (one-shot)."""
+    (wts[a, b]), that channel's weight, whether more channels weigh in (one-shot), and the three packed into
+    one int64 (ok | more << 1 | channel << 2) for the gathered link pass; then that pass's work rows for rows
+    of up to n runs (int64 (5, n) and float32 (3, n)). Built once per frame."""
     A = wts.shape[0]
     C = wts.shape[2]
     ok = np.zeros(A * A, np.bool_)
     ch = np.zeros(A * A, np.int64)
     w = np.zeros(A * A, np.float32)
     more = np.zeros(A * A, np.bool_)
+    info = np.zeros(A * A, np.int64)
     for a in range(A):
         for b in range(A):
             t = a * A + b
@@ -212,13 +215,91 @@ def _transitions(wts, link_ok):
             for c in range(cs + 1, C):
                 if wts[a, b, c] != 0:
                     more[t] = True
-    return ok, ch, w, more
+            info[t] = np.int64(ok[t]) | (np.int64(more[t]) << 1) | (ch[t] << 2)
+    return ok, ch, w, more, info, np.empty((5, n), np.int64), np.empty((3, n), np.float32)
+
+
+def _link_pass(nr, fr, A, trans, gap_max, rs, re, rc, link, edge, slow):
+    """link[j] and edge[j] between runs j and j + 1 as if they were adjacent (the zero crossing between their
+    facing pixels); lists in slow the linked ones that need the search, returns how many (compiled only: the
+    overload below gathers the table and pixel values first for C-contiguous differences, else one loop)."""
+    raise NotImplementedError("numba only")
+
+
+@overload(_link_pass, jit_options={"nogil": True, "error_model": "numpy"})
+def _link_pass_impl(nr, fr, A, trans, gap_max, rs, re, rc, link, edge, slow):
+    if _c_array(fr) and fr.dtype == types.float32:
+
+        def gathered(nr, fr, A, trans, gap_max, rs, re, rc, link, edge, slow):
+            # gathers into work rows, then one loop over plain rows that the compiler vectorises (a table read
+            # in the loop keeps it scalar); the same float operations as the loop below
+            t_w, info, iw, fw = trans[2], trans[4], trans[5], trans[6]
+            W = fr.shape[1]
+            n = nr - 1
+            tt, inf, a0, a1, flag = iw[0], iw[1], iw[2], iw[3], iw[4]
+            wj, f0, f1 = fw[0], fw[1], fw[2]
+            for j in range(n):
+                tt[j] = rc[j] * A + rc[j + 1]
+            _gather(inf, info, tt, n)
+            _gather(wj, t_w, tt, n)
+            for j in range(n):
+                row = (inf[j] >> 2) * W
+                a0[j] = row + re[j]
+                a1[j] = row + rs[j + 1]
+            flat = fr.reshape(fr.size)
+            _gather(f0, flat, a0, n)
+            _gather(f1, flat, a1, n)
+            for j in range(n):
+                lk = (rs[j + 1] - re[j] - 1 <= gap_max) & ((inf[j] & 1) != 0)
+                s0 = 0.0 + wj[j] * f0[j]
+                s1 = 0.0 + wj[j] * f1[j]
+                edge[j] = re[j] + s0 / (s0 - s1)
+                link[j] = lk
+                fast = (rs[j + 1] == re[j] + 1) & ((inf[j] & 2) == 0) & (s0 > 0) & (s1 <= 0)
+                flag[j] = lk & (not fast)
+            n_slow = 0
+            for j in range(n):
+                slow[n_slow] = j
+                n_slow += flag[j]
+            return n_slow
+
+        return gathered
+
+    def looped(nr, fr, A, trans, gap_max, rs, re, rc, link, edge, slow):
+        t_ok, t_ch, t_w, t_more = trans[:4]
+        n_slow = 0
+        for j in range(nr - 1):
+            t = rc[j] * A + rc[j + 1]
+            lk = (rs[j + 1] - re[j] - 1 <= gap_max) & t_ok[t]
+            cs = t_ch[t]
+            w = t_w[t]
+            s0 = 0.0 + w * fr[cs, re[j]]
+            s1 = 0.0 + w * fr[cs, rs[j + 1]]
+            edge[j] = re[j] + s0 / (s0 - s1)
+            link[j] = lk
+            fast = (rs[j + 1] == re[j] + 1) & (not t_more[t]) & (s0 > 0) & (s1 <= 0)
+            slow[n_slow] = j
+            n_slow += lk & (not fast)
+        return n_slow
+
+    return looped
+
+
+@njit(nogil=True, error_model="numpy")
+def _gather(dst, table, idx, n):
+    """dst[i] = table[idx[i]] for i < n, eight at a time with simd.gather8."""
+    i0 = 0
+    while i0 + GATHER_LANES <= n:
+        gather8(dst, table, idx, i0)
+        i0 += GATHER_LANES
+    for i in range(i0, n):
+        dst[i] = table[idx[i]]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge):
     """Runs of equal code along a row (code (W,), differences fr (C, W)); link and sub-pixel edge (zero
-    crossing) between neighbours. trans: _transitions(wts, link_ok). rc needs room for 2 W + 1 values."""
+    crossing) between neighbours. trans: _transitions(wts, link_ok, n). rc needs room for 2 W + 1 values."""
     W = code.shape[0]
     C = fr.shape[0]
     # every code change opens a candidate run at rs[nr] without a branch (runs change every ~2 px, so
@@ -238,25 +319,13 @@ def _pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge):
         rc[nr] = c
         re[nr] = (rs[j + 1] if j + 1 < nb else W) - 1
         nr += c >= 0
-    t_ok, t_ch, t_w, t_more = trans
+    t_ch, t_w, t_more = trans[1:4]
     A = wts.shape[0]
     # every link's edge as if its runs were adjacent (the usual case) without a branch; the rest are searched
     # below. Adjacent runs' pixels all have a sign, so when the edge signal falls from > 0 to <= 0 between
     # them, that is the only zero crossing the search would find. (rc's tail holds the runs to search.)
     slow = rc[W + 1 :]
-    n_slow = 0
-    for j in range(nr - 1):
-        t = rc[j] * A + rc[j + 1]
-        lk = (rs[j + 1] - re[j] - 1 <= gap_max) & t_ok[t]
-        cs = t_ch[t]
-        w = t_w[t]
-        s0 = 0.0 + w * fr[cs, re[j]]
-        s1 = 0.0 + w * fr[cs, rs[j + 1]]
-        edge[j] = re[j] + s0 / (s0 - s1)
-        link[j] = lk
-        fast = (rs[j + 1] == re[j] + 1) & (not t_more[t]) & (s0 > 0) & (s1 <= 0)
-        slow[n_slow] = j
-        n_slow += lk & (not fast)
+    n_slow = _link_pass(nr, fr, A, trans, gap_max, rs, re, rc, link, edge, slow)
     for i in range(n_slow):
         j = slow[i]
         t = rc[j] * A + rc[j + 1]
@@ -727,7 +796,7 @@ def label_rows(
     cnt = np.zeros(m, np.int64)
     no_span = np.empty((0, 2), np.int32)
     n_chains = 0
-    trans = _transitions(wts, link_ok)
+    trans = _transitions(wts, link_ok, n)
     for y in range(H):
         if events:
             nr = _event_runs(feat[y].T, noise[y].T, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right)
@@ -1152,7 +1221,7 @@ def twoshot_rows(
     first_e = np.zeros(H + 1, np.int64)  # chains of row y are first_e[y] .. first_e[y + 1] - 1
     first_r = np.zeros(H + 1, np.int64)
     check = tol > 0
-    trans = _transitions(wts, link_ok)
+    trans = _transitions(wts, link_ok, n)
     n_e = 0
     n_r = 0
     stats = np.zeros(4, np.int64)  # dropped events, dropped runs, filled, clashes

@@ -123,3 +123,59 @@ def differences16(typingctx, a, b, lin, dlin, u00, u01, u02, u10, u11, u12, ta, 
         return context.get_dummy_value()
 
     return sig, codegen
+
+
+GATHER_LANES = 8  # values per gather8 call (8 int64 indices fill one 512-bit register)
+_LLVM_NAME = {types.float32: "f32", types.float64: "f64", types.int32: "i32", types.int64: "i64"}
+
+
+@intrinsic
+def gather8(typingctx, dst, table, idx, i):
+    """dst[i + l] = table[idx[i + l]] for l < 8, as one vector gather: dst and table 1-D C-contiguous arrays of one
+    dtype (float32/64, int32/64), idx a 1-D C-contiguous int32/int64 array. The caller keeps i + 8 <= len(idx),
+    len(dst) and the indices inside the table. (numba emits no gathers itself: see the module docstring.)"""
+
+    def is_1d(t):
+        return isinstance(t, types.Array) and t.ndim == 1 and t.layout == "C"
+
+    if not (
+        is_1d(dst)
+        and is_1d(table)
+        and is_1d(idx)
+        and dst.dtype == table.dtype
+        and dst.dtype in _LLVM_NAME
+        and idx.dtype in (types.int32, types.int64)
+        and isinstance(i, types.Integer)
+    ):
+        return None
+    sig = types.void(dst, table, idx, i)
+    lanes = GATHER_LANES
+
+    def codegen(context, builder, signature, args):
+        kinds = signature.args
+        d, t, ix = (context.make_array(kinds[k])(context, builder, args[k]) for k in range(3))
+        at = context.cast(builder, args[3], kinds[3], types.int64)
+        val_t = context.get_value_type(kinds[0].dtype)
+        idx_t = context.get_value_type(kinds[2].dtype)
+        vval = ir.VectorType(val_t, lanes)
+        vidx = ir.VectorType(idx_t, lanes)
+        index = builder.load(builder.bitcast(builder.gep(ix.data, [at]), vidx.as_pointer()), align=idx_t.width // 8)
+        index = builder.sext(index, ir.VectorType(_I64, lanes)) if idx_t.width < 64 else index
+        vptr = ir.VectorType(val_t.as_pointer(), lanes)
+        gep = builder.gep(t.data, [ir.Constant(_I64, 0)])
+        gep.indices = [index]
+        gep.operands = [t.data, index]
+        gep.type = vptr
+        vmask = ir.VectorType(ir.IntType(1), lanes)
+        name = _LLVM_NAME[kinds[0].dtype]
+        fn = cgutils.get_or_insert_function(
+            builder.module,
+            ir.FunctionType(vval, [vptr, _I32, vmask, vval]),
+            f"llvm.masked.gather.v{lanes}{name}.v{lanes}p0",
+        )
+        align = ir.Constant(_I32, kinds[0].dtype.bitwidth // 8)
+        got = builder.call(fn, [gep, align, ir.Constant(vmask, [1] * lanes), ir.Constant(vval, ir.Undefined)])
+        builder.store(got, builder.bitcast(builder.gep(d.data, [at]), vval.as_pointer()), align=1)
+        return context.get_dummy_value()
+
+    return sig, codegen
