@@ -285,15 +285,39 @@ def _link_pass_impl(nr, fr, A, trans, gap_max, rs, re, rc, link, edge, slow):
     return looped
 
 
-@njit(nogil=True, error_model="numpy")
 def _gather(dst, table, idx, n):
-    """dst[i] = table[idx[i]] for i < n, eight at a time with simd.gather8."""
-    i0 = 0
-    while i0 + GATHER_LANES <= n:
-        gather8(dst, table, idx, i0)
-        i0 += GATHER_LANES
-    for i in range(i0, n):
-        dst[i] = table[idx[i]]
+    """dst[i] = table[idx[i]] for i < n (compiled only: eight at a time with simd.gather8 where it takes the
+    arrays, else a loop)."""
+    raise NotImplementedError("numba only")
+
+
+@overload(_gather, jit_options={"nogil": True, "error_model": "numpy"})
+def _gather_impl(dst, table, idx, n):
+    kinds = (types.float32, types.float64, types.int32, types.int64)
+    if (
+        all(_c_array(t) and t.ndim == 1 for t in (dst, table, idx))
+        and dst.dtype in kinds
+        and table.dtype in kinds
+        and isinstance(dst.dtype, types.Float) == isinstance(table.dtype, types.Float)
+        and dst.dtype.bitwidth >= table.dtype.bitwidth
+        and idx.dtype in (types.int32, types.int64)
+    ):
+
+        def vector(dst, table, idx, n):
+            i0 = 0
+            while i0 + GATHER_LANES <= n:
+                gather8(dst, table, idx, i0)
+                i0 += GATHER_LANES
+            for i in range(i0, n):
+                dst[i] = table[idx[i]]
+
+        return vector
+
+    def scalar(dst, table, idx, n):
+        for i in range(n):
+            dst[i] = table[idx[i]]
+
+    return scalar
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -583,10 +607,13 @@ def _label_row(
     """Windows -> confirmed labels -> chains -> interpolated columns of row y. Returns n_chains.
 
     span[c] = (first, last) pixel chain c may write (when span has room for it: the fused path's vote counts
-    walk these spans instead of whole rows)."""
+    walk these spans instead of whole rows). sm (4, n): the smoothed nodes and then the slopes (row 0), and the
+    column write's work rows."""
     W = out_col.shape[1]
     if nr < k:
         return n_chains
+    work = sm
+    sm = work[0]
     _window_positions(nr, rc, link, table, A, k, pos)
     for i in range(nr):
         lab[i] = -1
@@ -727,18 +754,28 @@ def _label_row(
             sm[r] = (nv[r + 1] - nv[r]) / (nx[r + 1] - nx[r])
         # pixel xx takes the segment after the last interior node left of it (the first segment extends left,
         # the last right): count the interior nodes at the first pixel right of each, then a running sum gives
-        # each pixel's segment (stepping a segment index per pixel would chain every pixel through a load)
+        # each pixel's segment; the segments' nodes and slopes are then gathered per pixel, so the loop that
+        # interpolates reads plain rows and is vectorised (a table read kept it scalar)
         nxp = xb - xa + 1
-        seg_steps = tl  # free once the windows are looked up
+        seg_of = tl  # free once the windows are looked up
         for q in range(nxp + 1):
-            seg_steps[q] = 0
+            seg_of[q] = 0
         for r in range(1, nn - 1):
             q = int(np.floor(nx[r])) + 1 - xa
-            seg_steps[min(max(q, 0), nxp)] += 1
+            seg_of[min(max(q, 0), nxp)] += 1
         seg = 0
-        for xx in range(xa, xb + 1):
-            seg += seg_steps[xx - xa]
-            v = nv[seg] + (xx - nx[seg]) * sm[seg]
+        for q in range(nxp):
+            seg += seg_of[q]
+            seg_of[q] = seg
+        gv = work[1]
+        gx = work[2]
+        gs = work[3]
+        _gather(gv, nv, seg_of, nxp)
+        _gather(gx, nx, seg_of, nxp)
+        _gather(gs, sm, seg_of, nxp)
+        for q in range(nxp):
+            xx = xa + q
+            v = gv[q] + (xx - gx[q]) * gs[q]
             ok = (v >= lo_v) & (v <= hi_v)
             v += shift
             if use_range:
@@ -1283,7 +1320,7 @@ def _row_scratch(n, W, n_copies):
     lab = np.empty(n, np.int64)
     nx = np.empty(n, np.float64)
     nv = np.empty(n, np.float64)
-    sm = np.empty(n, np.float64)
+    sm = np.empty((4, n), np.float64)
     votes = np.zeros(max(n_copies, 1), np.int64)
     return rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, votes
 

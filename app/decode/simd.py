@@ -131,9 +131,10 @@ _LLVM_NAME = {types.float32: "f32", types.float64: "f64", types.int32: "i32", ty
 
 @intrinsic
 def gather8(typingctx, dst, table, idx, i):
-    """dst[i + l] = table[idx[i + l]] for l < 8, as one vector gather: dst and table 1-D C-contiguous arrays of one
-    dtype (float32/64, int32/64), idx a 1-D C-contiguous int32/int64 array. The caller keeps i + 8 <= len(idx),
-    len(dst) and the indices inside the table. (numba emits no gathers itself: see the module docstring.)"""
+    """dst[i + l] = table[idx[i + l]] for l < 8, as one vector gather: dst and table 1-D C-contiguous arrays of
+    float32/64 or int32/64 (dst of the table's kind, as wide or wider: the values are widened), idx a 1-D
+    C-contiguous int32/int64 array. The caller keeps i + 8 <= len(idx), len(dst) and the indices inside the
+    table. (numba emits no gathers itself: see the module docstring.)"""
 
     def is_1d(t):
         return isinstance(t, types.Array) and t.ndim == 1 and t.layout == "C"
@@ -142,8 +143,10 @@ def gather8(typingctx, dst, table, idx, i):
         is_1d(dst)
         and is_1d(table)
         and is_1d(idx)
-        and dst.dtype == table.dtype
         and dst.dtype in _LLVM_NAME
+        and table.dtype in _LLVM_NAME
+        and isinstance(dst.dtype, types.Float) == isinstance(table.dtype, types.Float)
+        and dst.dtype.bitwidth >= table.dtype.bitwidth
         and idx.dtype in (types.int32, types.int64)
         and isinstance(i, types.Integer)
     ):
@@ -155,9 +158,11 @@ def gather8(typingctx, dst, table, idx, i):
         kinds = signature.args
         d, t, ix = (context.make_array(kinds[k])(context, builder, args[k]) for k in range(3))
         at = context.cast(builder, args[3], kinds[3], types.int64)
-        val_t = context.get_value_type(kinds[0].dtype)
+        val_t = context.get_value_type(kinds[1].dtype)
+        out_t = context.get_value_type(kinds[0].dtype)
         idx_t = context.get_value_type(kinds[2].dtype)
         vval = ir.VectorType(val_t, lanes)
+        vout = ir.VectorType(out_t, lanes)
         vidx = ir.VectorType(idx_t, lanes)
         index = builder.load(builder.bitcast(builder.gep(ix.data, [at]), vidx.as_pointer()), align=idx_t.width // 8)
         index = builder.sext(index, ir.VectorType(_I64, lanes)) if idx_t.width < 64 else index
@@ -167,15 +172,18 @@ def gather8(typingctx, dst, table, idx, i):
         gep.operands = [t.data, index]
         gep.type = vptr
         vmask = ir.VectorType(ir.IntType(1), lanes)
-        name = _LLVM_NAME[kinds[0].dtype]
+        name = _LLVM_NAME[kinds[1].dtype]
         fn = cgutils.get_or_insert_function(
             builder.module,
             ir.FunctionType(vval, [vptr, _I32, vmask, vval]),
             f"llvm.masked.gather.v{lanes}{name}.v{lanes}p0",
         )
-        align = ir.Constant(_I32, kinds[0].dtype.bitwidth // 8)
+        align = ir.Constant(_I32, kinds[1].dtype.bitwidth // 8)
         got = builder.call(fn, [gep, align, ir.Constant(vmask, [1] * lanes), ir.Constant(vval, ir.Undefined)])
-        builder.store(got, builder.bitcast(builder.gep(d.data, [at]), vval.as_pointer()), align=1)
+        if kinds[0].dtype != kinds[1].dtype:
+            float_ = isinstance(kinds[0].dtype, types.Float)
+            got = builder.fpext(got, vout) if float_ else builder.sext(got, vout)
+        builder.store(got, builder.bitcast(builder.gep(d.data, [at]), vout.as_pointer()), align=1)
         return context.get_dummy_value()
 
     return sig, codegen

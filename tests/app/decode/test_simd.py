@@ -79,16 +79,20 @@ def _gather_all(dst, table, idx):
     return i
 
 
-@pytest.mark.parametrize("value", [np.float32, np.float64, np.int32, np.int64])
+@pytest.mark.parametrize(
+    "value, out",
+    [(np.float32, np.float32), (np.float64, np.float64), (np.int32, np.int32), (np.int64, np.int64)]
+    + [(np.float32, np.float64), (np.int32, np.int64)],  # widened
+)
 @pytest.mark.parametrize("index", [np.int32, np.int64])
-def test_gather8_reads_the_table_at_each_index(value, index):
+def test_gather8_reads_the_table_at_each_index(value, out, index):
     rng = np.random.default_rng(3)
-    table = (rng.random(1000) * 1e6).astype(value)
+    table = ((rng.random(1000) - 0.5) * 1e6).astype(value)
     idx = rng.integers(0, 1000, 40).astype(index)
     idx[:2] = (0, 999)
-    dst = np.zeros(41, value)
+    dst = np.zeros(41, out)
     assert _gather_all(dst, table, idx) == 40
-    np.testing.assert_array_equal(dst[:40], table[idx])
+    np.testing.assert_array_equal(dst[:40], table[idx].astype(out))
     assert dst[40] == 0  # nothing written past the last group of eight
 
 
