@@ -81,8 +81,14 @@ def _gather_all(dst, table, idx):
 
 @pytest.mark.parametrize(
     "value, out",
-    [(np.float32, np.float32), (np.float64, np.float64), (np.int32, np.int32), (np.int64, np.int64)]
-    + [(np.float32, np.float64), (np.int32, np.int64)],  # widened
+    [
+        (np.float32, np.float32),
+        (np.float64, np.float64),
+        (np.int32, np.int32),
+        (np.int64, np.int64),
+        (np.float32, np.float64),  # widened
+        (np.int32, np.int64),
+    ],
 )
 @pytest.mark.parametrize("index", [np.int32, np.int64])
 def test_gather8_reads_the_table_at_each_index(value, out, index):
