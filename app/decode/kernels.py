@@ -714,24 +714,28 @@ def _label_row(
             copy_span = period * sw
             inv_span = 1.0 / copy_span  # a multiply, not a division (exact for the usual power-of-2 span)
             pw = proj_w - 0.5
-            for q in range(n_copies):
-                votes[q] = 0
+            # node r votes for copies q >= q0 (the first whose column reaches lo) while v + q span <= hi: the
+            # pixels' range ends gathered first, then each copy's count as a vectorised sum over the nodes
+            # (a per-node loop over copies with table reads stayed scalar)
+            xr = pos  # free once the labels are confirmed
             for r in range(nn):
-                xr = int(nx[r] + 0.5)
-                if xr < 0:
-                    xr = 0
-                if xr > W - 1:
-                    xr = W - 1
+                xr[r] = min(max(int(nx[r] + 0.5), 0), W - 1)
+            glo = work[1]
+            ghi = work[2]
+            _gather(glo, lo[y], xr, nn)
+            _gather(ghi, hi[y], xr, nn)
+            q0 = xr
+            for r in range(nn):
                 v = nv[r]
-                hv = hi[y, xr]
-                if hv > pw:
-                    hv = pw
-                q = int(np.ceil((lo[y, xr] - v) * inv_span))
-                if q < 0:
-                    q = 0
-                while q < n_copies and v + q * copy_span <= hv:
-                    votes[q] += 1
-                    q += 1
+                hv = ghi[r]
+                ghi[r] = pw if hv > pw else hv
+                q0[r] = max(int(np.ceil((glo[r] - v) * inv_span)), 0)
+            for q in range(n_copies):
+                cnt = 0
+                base = q * copy_span
+                for r in range(nn):
+                    cnt += (q >= q0[r]) & (nv[r] + base <= ghi[r])
+                votes[q] = cnt
             best_q = -1
             best_n = 0
             second_n = 0
