@@ -25,7 +25,13 @@ import numpy as np
 from numba import njit, types
 from numba.extending import overload
 
-from app.decode.simd import GATHER_LANES, LANES, differences16, gather8
+from app.decode.simd import GATHER_LANES, LANES, differences16, differences16_takes, gather8, gather8_takes
+
+
+def _c_array(t: types.Type) -> bool:
+    """Typing-time test of the overloads below: a C-contiguous numba array type."""
+    return isinstance(t, types.Array) and t.layout == "C"
+
 
 # Pixels beyond a chain's outer stripe edges keep a value up to this many stripes out (the end stripe's
 # own pixels; its far side is not measured, so beyond half a stripe is the blur of a shadow edge).
@@ -110,7 +116,7 @@ def twoshot_classify(f1, f2, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, 
                 thr = t_rel * a
                 if thr < nz:
                     thr = nz
-                if abs(d) < thr:
+                if not abs(d) >= thr:  # (a NaN difference has no sign either, as in the numpy reference)
                     ok = False
                 elif d < 0:
                     cd |= 1 << c
@@ -293,15 +299,7 @@ def _gather(dst, table, idx, n):
 
 @overload(_gather, jit_options={"nogil": True, "error_model": "numpy"})
 def _gather_impl(dst, table, idx, n):
-    kinds = (types.float32, types.float64, types.int32, types.int64)
-    if (
-        all(_c_array(t) and t.ndim == 1 for t in (dst, table, idx))
-        and dst.dtype in kinds
-        and table.dtype in kinds
-        and isinstance(dst.dtype, types.Float) == isinstance(table.dtype, types.Float)
-        and dst.dtype.bitwidth >= table.dtype.bitwidth
-        and idx.dtype in (types.int32, types.int64)
-    ):
+    if gather8_takes(dst, table, idx):
 
         def vector(dst, table, idx, n):
             i0 = 0
@@ -597,7 +595,7 @@ def _label_row(
     edges_mode,
     min_frac,
     smooth,
-    sm,
+    work,
     votes,
     out_col,
     out_chain,
@@ -607,12 +605,11 @@ def _label_row(
     """Windows -> confirmed labels -> chains -> interpolated columns of row y. Returns n_chains.
 
     span[c] = (first, last) pixel chain c may write (when span has room for it: the fused path's vote counts
-    walk these spans instead of whole rows). sm (4, n): the smoothed nodes and then the slopes (row 0), and the
-    column write's work rows."""
+    walk these spans instead of whole rows). work (4, n): row 0 the smoothed nodes, then the slopes; rows 1-2
+    the copy vote's range ends, rows 1-3 the column write's gathered node values."""
     W = out_col.shape[1]
     if nr < k:
         return n_chains
-    work = sm
     sm = work[0]
     _window_positions(nr, rc, link, table, A, k, pos)
     for i in range(nr):
@@ -729,7 +726,9 @@ def _label_row(
                 v = nv[r]
                 hv = ghi[r]
                 ghi[r] = pw if hv > pw else hv
-                q0[r] = max(int(np.ceil((glo[r] - v) * inv_span)), 0)
+                # clamped in float: int() of NaN or of values past int64 is undefined (x86 gives INT64_MIN)
+                qf = np.ceil((glo[r] - v) * inv_span)
+                q0[r] = int(min(qf, n_copies)) if qf > 0.0 else 0
             for q in range(n_copies):
                 cnt = 0
                 base = q * copy_span
@@ -968,15 +967,18 @@ def _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, 
     # whole blocks of the usual 8 pixels written out (a loop of unknown length per block costs a vector
     # loop's set-up and its scalar tail every 8 pixels); the rest, and other block sizes, in the loop
     nb8 = W // 8 if block == 8 else 0
+    z = np.float32(0.0)
     for b in range(nb8):
         x0 = b * 8
+        # each leaf pair starts from 0 like the loop below, so a NaN is skipped there too (max(a, b) keeps a
+        # unless b > a: a NaN first operand would win)
         m0 = max(
-            max(max(abs(fv0[x0]), abs(fv0[x0 + 1])), max(abs(fv0[x0 + 2]), abs(fv0[x0 + 3]))),
-            max(max(abs(fv0[x0 + 4]), abs(fv0[x0 + 5])), max(abs(fv0[x0 + 6]), abs(fv0[x0 + 7]))),
+            max(max(max(z, abs(fv0[x0])), abs(fv0[x0 + 1])), max(max(z, abs(fv0[x0 + 2])), abs(fv0[x0 + 3]))),
+            max(max(max(z, abs(fv0[x0 + 4])), abs(fv0[x0 + 5])), max(max(z, abs(fv0[x0 + 6])), abs(fv0[x0 + 7]))),
         )
         m1 = max(
-            max(max(abs(fv1[x0]), abs(fv1[x0 + 1])), max(abs(fv1[x0 + 2]), abs(fv1[x0 + 3]))),
-            max(max(abs(fv1[x0 + 4]), abs(fv1[x0 + 5])), max(abs(fv1[x0 + 6]), abs(fv1[x0 + 7]))),
+            max(max(max(z, abs(fv1[x0])), abs(fv1[x0 + 1])), max(max(z, abs(fv1[x0 + 2])), abs(fv1[x0 + 3]))),
+            max(max(max(z, abs(fv1[x0 + 4])), abs(fv1[x0 + 5])), max(max(z, abs(fv1[x0 + 6])), abs(fv1[x0 + 7]))),
         )
         bm0[b + 1] = m0
         bm1[b + 1] = m1
@@ -1050,15 +1052,14 @@ def _differences(f1, f2, y, lin, dlin, unmix, ta, tmp):
     raise NotImplementedError("numba only")
 
 
-def _c_array(t) -> bool:
-    return isinstance(t, types.Array) and t.layout == "C"
-
-
 @overload(_differences, jit_options={"nogil": True, "error_model": "numpy"})
 def _differences_impl(f1, f2, y, lin, dlin, unmix, ta, tmp):
-    if all(_c_array(t) for t in (f1, f2, lin, dlin, tmp)) and f1 == f2 and f1.dtype in (types.uint8, types.uint16):
+    if f1 == f2 and differences16_takes(f1, lin, dlin, unmix, ta, tmp):
 
         def vector(f1, f2, y, lin, dlin, unmix, ta, tmp):
+            if f1.shape[2] != 3 or lin.shape[0] != 3 or dlin.shape[0] != 3:
+                _differences_loop(f1, f2, y, lin, dlin, unmix, ta, tmp)
+                return
             W = f1.shape[1]
             a = f1[y]
             b = f2[y]
@@ -1078,12 +1079,17 @@ def _differences_impl(f1, f2, y, lin, dlin, unmix, ta, tmp):
         return vector
 
     def scalar(f1, f2, y, lin, dlin, unmix, ta, tmp):
-        _row_differences(
-            f1[y], f2[y], lin[0], lin[1], lin[2], dlin[0], dlin[1], dlin[2], unmix[0, 0], unmix[0, 1], unmix[0, 2],
-            unmix[1, 0], unmix[1, 1], unmix[1, 2], ta, tmp[0], tmp[1], tmp[2], tmp[3],
-        )  # fmt: skip
+        _differences_loop(f1, f2, y, lin, dlin, unmix, ta, tmp)
 
     return scalar
+
+
+@njit(nogil=True, error_model="numpy")
+def _differences_loop(f1, f2, y, lin, dlin, unmix, ta, tmp):
+    _row_differences(
+        f1[y], f2[y], lin[0], lin[1], lin[2], dlin[0], dlin[1], dlin[2], unmix[0, 0], unmix[0, 1], unmix[0, 2],
+        unmix[1, 0], unmix[1, 1], unmix[1, 2], ta, tmp[0], tmp[1], tmp[2], tmp[3],
+    )  # fmt: skip
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

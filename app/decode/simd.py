@@ -1,11 +1,17 @@
-"""Table lookups 16 pixels at a time, written as LLVM vector code (a numba intrinsic).
+"""Table lookups as explicit vector gathers (numba intrinsics that emit LLVM vector IR).
 
-numba never vectorises a loop that reads float32 tables at data-dependent indices and stores float32 results:
-without type-based alias information LLVM must assume a store may change a table, so the loop stays scalar
-(about 45 instructions per pixel for the two-shot differences). Here one call loads 16 RGB pixels of both
-frames, splits the channels with shuffles and reads the 12 table values of each pixel with gathers (AVX-512 or
-AVX2 gather instructions where the CPU has them; LLVM turns them into scalar loads where it has not), with
-the same float32 operations in the same order as the scalar loop, so the results are bit-identical.
+numba never vectorises a loop that reads a table at data-dependent indices and stores into another array:
+without type-based alias information LLVM must assume a store may change the table, so the loop stays scalar
+(about 45 instructions per pixel for the two-shot differences). `differences16` loads 16 RGB pixels of both
+frames, splits the channels with shuffles and reads each pixel's 12 table values with `llvm.masked.gather`,
+with the same float32 operations in the same order as the scalar loop, so the results are bit-identical.
+`gather8` is the general form (8 values into a plain row), after which the compiler vectorises the
+arithmetic itself. On AVX-512 these are gather instructions (the speed-ups in the README were measured there);
+elsewhere LLVM expands them into scalar loads, which is no slower than the loops they replace.
+
+The calls are written in LLVM's four-argument form (pointers, alignment, mask, pass-through); LLVM 22 drops the
+alignment operand and upgrades such calls itself. numba's on-disk cache of `kernels.py` does not notice edits
+to this file: after changing it, touch `kernels.py` (or delete `app/decode/__pycache__`).
 """
 
 from __future__ import annotations
@@ -15,15 +21,14 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-LANES = 16  # pixels per call
+LANES = 16  # pixels per differences16 call
+_LLVM_NAME = {types.float32: "f32", types.float64: "f64", types.int32: "i32", types.int64: "i64"}
 
 _F32 = ir.FloatType()
 _I32 = ir.IntType(32)
 _I64 = ir.IntType(64)
 _V = ir.VectorType(_F32, LANES)
 _VI = ir.VectorType(_I32, LANES)
-_VP = ir.VectorType(_F32.as_pointer(), LANES)
-_VB = ir.VectorType(ir.IntType(1), LANES)
 
 
 def _splat(builder: ir.IRBuilder, value: ir.Value, vtype: ir.VectorType) -> ir.Value:
@@ -31,27 +36,55 @@ def _splat(builder: ir.IRBuilder, value: ir.Value, vtype: ir.VectorType) -> ir.V
     return builder.shuffle_vector(v, ir.Constant(vtype, ir.Undefined), ir.Constant(_VI, [0] * LANES))
 
 
-def _gather(builder: ir.IRBuilder, base: ir.Value, index: ir.Value) -> ir.Value:
-    """table[index] for a vector of 16 int32 indices into a float32 table at base."""
-    # a GEP with a vector index gives the 16 addresses (llvmlite's GEP types only scalar indices: built with
-    # one, then given the vector and its result type)
-    gep = builder.gep(base, [ir.Constant(_I32, 0)])
+def _masked_gather(builder: ir.IRBuilder, base: ir.Value, index: ir.Value, value: ir.Type, name: str) -> ir.Value:
+    """base[index] for a vector index (all lanes on): a vector of `value`; name is LLVM's type suffix (f32...)."""
+    lanes = index.type.count
+    vptr = ir.VectorType(value.as_pointer(), lanes)
+    # a GEP with a vector index gives the lanes' addresses; llvmlite's GEP types only scalar indices, so it is
+    # built with one and then given the vector and its result type (llvmlite internals, checked by the tests)
+    gep = builder.gep(base, [ir.Constant(index.type.element, 0)])
     gep.indices = [index]
     gep.operands = [base, index]
-    gep.type = _VP
-    mod = builder.module
+    gep.type = vptr
+    vval = ir.VectorType(value, lanes)
+    vmask = ir.VectorType(ir.IntType(1), lanes)
     fn = cgutils.get_or_insert_function(
-        mod, ir.FunctionType(_V, [_VP, _I32, _VB, _V]), f"llvm.masked.gather.v{LANES}f32.v{LANES}p0"
+        builder.module,
+        ir.FunctionType(vval, [vptr, _I32, vmask, vval]),
+        f"llvm.masked.gather.v{lanes}{name}.v{lanes}p0",
     )
-    return builder.call(fn, [gep, ir.Constant(_I32, 4), ir.Constant(_VB, [1] * LANES), ir.Constant(_V, ir.Undefined)])
+    align = ir.Constant(_I32, int(name[1:]) // 8)
+    return builder.call(fn, [gep, align, ir.Constant(vmask, [1] * lanes), ir.Constant(vval, ir.Undefined)])
 
 
-def _is_row(t: types.Type, dtypes: tuple) -> bool:
-    return isinstance(t, types.Array) and t.ndim == 2 and t.layout == "C" and t.dtype in dtypes
+def _c(t: types.Type, ndim: int, dtypes: tuple) -> bool:
+    return isinstance(t, types.Array) and t.ndim == ndim and t.layout == "C" and t.dtype in dtypes
 
 
-def _is_table(t: types.Type) -> bool:
-    return isinstance(t, types.Array) and t.ndim == 1 and t.layout == "C" and t.dtype == types.float32
+def differences16_takes(frame, lin, dlin, unmix, ta, out) -> bool:
+    """Whether differences16 can take rows of these (numba) types: C-contiguous uint8/uint16 frames (H, W, C),
+    float32 tables (3, levels), float32 unmixing rows and noise floor, a float32 C-contiguous output. (The
+    caller still checks at run time that C and the table rows are 3.)"""
+    return (
+        _c(frame, 3, (types.uint8, types.uint16))
+        and _c(lin, 2, (types.float32,))
+        and _c(dlin, 2, (types.float32,))
+        and isinstance(unmix, types.Array)
+        and unmix.dtype == types.float32
+        and ta == types.float32
+        and _c(out, 2, (types.float32,))
+    )
+
+
+def gather8_takes(dst: types.Type, table: types.Type, idx: types.Type) -> bool:
+    """Whether gather8 takes arrays of these (numba) types (see gather8)."""
+    return (
+        _c(dst, 1, tuple(_LLVM_NAME))
+        and _c(table, 1, tuple(_LLVM_NAME))
+        and _c(idx, 1, (types.int32, types.int64))
+        and isinstance(dst.dtype, types.Float) == isinstance(table.dtype, types.Float)
+        and dst.dtype.bitwidth >= table.dtype.bitwidth
+    )
 
 
 @intrinsic
@@ -62,15 +95,12 @@ def differences16(typingctx, a, b, lin, dlin, u00, u01, u02, u10, u11, u12, ta, 
     the noise floors n0, n1 in its first four rows. The caller keeps x + 16 <= W."""
     coefs = (u00, u01, u02, u10, u11, u12, ta)
     if not (
-        _is_row(a, (types.uint8, types.uint16))
+        _c(a, 2, (types.uint8, types.uint16))
         and b == a
-        and _is_table(lin)
-        and _is_table(dlin)
+        and _c(lin, 1, (types.float32,))
+        and _c(dlin, 1, (types.float32,))
         and all(c == types.float32 for c in coefs)
-        and isinstance(out, types.Array)
-        and out.ndim == 2
-        and out.layout == "C"
-        and out.dtype == types.float32
+        and _c(out, 2, (types.float32,))
         and isinstance(x, types.Integer)
     ):
         return None
@@ -101,8 +131,16 @@ def differences16(typingctx, a, b, lin, dlin, u00, u01, u02, u10, u11, u12, ta, 
             off = _splat(builder, builder.mul(levels, ir.Constant(_I32, c)), _VI)
             ia = builder.add(chans[0][c], off)
             ib = builder.add(chans[1][c], off)
-            e.append(builder.fsub(_gather(builder, plin, ib), _gather(builder, plin, ia)))
-            n.append(builder.fadd(_gather(builder, pdlin, ib), _gather(builder, pdlin, ia)))
+            e.append(
+                builder.fsub(
+                    _masked_gather(builder, plin, ib, _F32, "f32"), _masked_gather(builder, plin, ia, _F32, "f32")
+                )
+            )
+            n.append(
+                builder.fadd(
+                    _masked_gather(builder, pdlin, ib, _F32, "f32"), _masked_gather(builder, pdlin, ia, _F32, "f32")
+                )
+            )
         co = [_splat(builder, v, _V) for v in args[4:11]]
         absf = cgutils.get_or_insert_function(builder.module, ir.FunctionType(_V, [_V]), f"llvm.fabs.v{LANES}f32")
         w = [builder.call(absf, [c]) for c in co[:6]]
@@ -126,7 +164,6 @@ def differences16(typingctx, a, b, lin, dlin, u00, u01, u02, u10, u11, u12, ta, 
 
 
 GATHER_LANES = 8  # values per gather8 call (8 int64 indices fill one 512-bit register)
-_LLVM_NAME = {types.float32: "f32", types.float64: "f64", types.int32: "i32", types.int64: "i64"}
 
 
 @intrinsic
@@ -135,21 +172,7 @@ def gather8(typingctx, dst, table, idx, i):
     float32/64 or int32/64 (dst of the table's kind, as wide or wider: the values are widened), idx a 1-D
     C-contiguous int32/int64 array. The caller keeps i + 8 <= len(idx), len(dst) and the indices inside the
     table. (numba emits no gathers itself: see the module docstring.)"""
-
-    def is_1d(t):
-        return isinstance(t, types.Array) and t.ndim == 1 and t.layout == "C"
-
-    if not (
-        is_1d(dst)
-        and is_1d(table)
-        and is_1d(idx)
-        and dst.dtype in _LLVM_NAME
-        and table.dtype in _LLVM_NAME
-        and isinstance(dst.dtype, types.Float) == isinstance(table.dtype, types.Float)
-        and dst.dtype.bitwidth >= table.dtype.bitwidth
-        and idx.dtype in (types.int32, types.int64)
-        and isinstance(i, types.Integer)
-    ):
+    if not (gather8_takes(dst, table, idx) and isinstance(i, types.Integer)):
         return None
     sig = types.void(dst, table, idx, i)
     lanes = GATHER_LANES
@@ -161,25 +184,11 @@ def gather8(typingctx, dst, table, idx, i):
         val_t = context.get_value_type(kinds[1].dtype)
         out_t = context.get_value_type(kinds[0].dtype)
         idx_t = context.get_value_type(kinds[2].dtype)
-        vval = ir.VectorType(val_t, lanes)
         vout = ir.VectorType(out_t, lanes)
         vidx = ir.VectorType(idx_t, lanes)
         index = builder.load(builder.bitcast(builder.gep(ix.data, [at]), vidx.as_pointer()), align=idx_t.width // 8)
         index = builder.sext(index, ir.VectorType(_I64, lanes)) if idx_t.width < 64 else index
-        vptr = ir.VectorType(val_t.as_pointer(), lanes)
-        gep = builder.gep(t.data, [ir.Constant(_I64, 0)])
-        gep.indices = [index]
-        gep.operands = [t.data, index]
-        gep.type = vptr
-        vmask = ir.VectorType(ir.IntType(1), lanes)
-        name = _LLVM_NAME[kinds[1].dtype]
-        fn = cgutils.get_or_insert_function(
-            builder.module,
-            ir.FunctionType(vval, [vptr, _I32, vmask, vval]),
-            f"llvm.masked.gather.v{lanes}{name}.v{lanes}p0",
-        )
-        align = ir.Constant(_I32, kinds[1].dtype.bitwidth // 8)
-        got = builder.call(fn, [gep, align, ir.Constant(vmask, [1] * lanes), ir.Constant(vval, ir.Undefined)])
+        got = _masked_gather(builder, t.data, index, val_t, _LLVM_NAME[kinds[1].dtype])
         if kinds[0].dtype != kinds[1].dtype:
             float_ = isinstance(kinds[0].dtype, types.Float)
             got = builder.fpext(got, vout) if float_ else builder.sext(got, vout)

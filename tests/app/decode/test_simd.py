@@ -131,3 +131,55 @@ def test_gathered_link_pass_equals_the_loop():
     assert len(got[0]) > 300 and got[3].sum() > 100
     for g, w in zip(got, want, strict=True):
         np.testing.assert_array_equal(g, w)
+
+
+@njit(cache=False)
+def _fused_codes(f1, f2, lin, dlin, unmix, t_abs, t_rel, block, code):
+    W = f1.shape[1]
+    nb = (W + block - 1) // block
+    bmax = np.empty((2, nb + 2), np.float32)
+    tmp = np.empty((6, W), np.float32)
+    for y in range(f1.shape[0]):
+        kernels._classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel, block, bmax, tmp, False, code[y])
+
+
+@pytest.mark.parametrize("width", [64, 61])
+def test_row_classification_skips_nan_like_the_specification(width):
+    """A camera response with NaN entries (a bad calibration) makes some differences NaN: the row kernel's
+    unrolled block maxima skip them as twoshot_classify (the specification) does, so the codes agree."""
+    rng = np.random.default_rng(7)
+    f1 = rng.integers(0, 256, (6, width, 3)).astype(np.uint8)
+    f2 = rng.integers(0, 256, (6, width, 3)).astype(np.uint8)
+    f1[:, ::8, 1] = 17  # the first pixel of every block reads the NaN entry
+    lin = np.tile(np.linspace(0, 255, 256, dtype=np.float32), (3, 1))
+    lin[1, 17] = np.nan
+    dlin = np.ones((3, 256), np.float32)
+    unmix = np.array([[0.1, 1.0, 0.05], [0.0, 0.1, 1.0]], np.float32)
+    want = np.empty((6, width), np.int8)
+    feat = np.empty((6, width, 2), np.float32)
+    noise = np.empty((6, width, 2), np.float32)
+    args = (np.float32(2.0), np.float32(0.03))
+    kernels.twoshot_classify(f1, f2, lin, dlin, unmix, *args, np.float32(0.03), 8, want, feat, noise)
+    got = np.empty((6, width), np.int8)
+    _fused_codes(f1, f2, lin, dlin, unmix, *args, 8, got)
+    assert np.isnan(feat[:, ::8, 0]).all() and (want >= 0).mean() > 0.3
+    np.testing.assert_array_equal(got, want)
+
+
+def test_differences_fall_back_to_the_loop_for_what_the_gathers_do_not_take():
+    """RGBA frames (4 channels: the gathers read 3 per pixel) and float64 coefficients take the loop, with the
+    loop's result, instead of a wrong result or a compile error."""
+    rng = np.random.default_rng(11)
+    f1 = rng.integers(0, 256, (2, 40, 4)).astype(np.uint8)
+    f2 = rng.integers(0, 256, (2, 40, 4)).astype(np.uint8)
+    lin = (255 * rng.random((3, 256))).astype(np.float32)
+    dlin = rng.random((3, 256)).astype(np.float32)
+    unmix = rng.normal(size=(2, 3)).astype(np.float32)
+    want = np.zeros((2, 6, 40), np.float32)
+    _scalar(f1, f2, lin, dlin, unmix, np.float32(1.0), want)
+    got = np.zeros((2, 6, 40), np.float32)
+    _dispatched(f1, f2, lin, dlin, unmix, np.float32(1.0), got)
+    np.testing.assert_array_equal(got, want)
+    got64 = np.zeros((2, 6, 40), np.float64)
+    _dispatched(f1[..., :3].copy(), f2[..., :3].copy(), lin, dlin, unmix.astype(np.float64), 1.0, got64)
+    assert np.isfinite(got64[:, :4]).all()
