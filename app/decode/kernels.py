@@ -536,7 +536,7 @@ def _event_runs(fr, tr, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, 
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _window_positions(nr, rc, link, table, A, k, pos):
+def _window_positions(nr, rc, link, table, A, k, pos, keys):
     """pos[j] = the sequence position of the window of runs j..j+k-1 (its key sum_t rc[j + t] * A**t through
     the table), -1 where the window is not k linked runs or not in the sequence.
 
@@ -544,7 +544,20 @@ def _window_positions(nr, rc, link, table, A, k, pos):
     over windows is vectorised (the usual k = 7 written out; a rolled key chains every run through a
     multiply)."""
     nw = nr - k + 1
-    if k == 7:
+    if k == 7 and A & (A - 1) == 0:
+        # a power-of-two alphabet (two-shot: 4 codes): the key by shifts, read from the table with gathers (the
+        # loop of 64-bit multiplies and a table read stayed scalar), then the link test (windows 0.46 -> 0.30 ms)
+        s = 0
+        while (1 << s) < A:
+            s += 1
+        for j in range(nw):
+            key = rc[j] | (rc[j + 1] << s) | (rc[j + 2] << 2 * s) | (rc[j + 3] << 3 * s) | (rc[j + 4] << 4 * s)
+            keys[j] = key | (rc[j + 5] << 5 * s) | (rc[j + 6] << 6 * s)
+        _gather(pos, table, keys, nw)
+        for j in range(nw):
+            nl = np.int64(link[j]) + link[j + 1] + link[j + 2] + link[j + 3] + link[j + 4] + link[j + 5]
+            pos[j] = pos[j] if nl == 6 else -1
+    elif k == 7:
         A2 = A * A
         A3 = A2 * A
         A4 = A3 * A
@@ -611,7 +624,7 @@ def _label_row(
     if nr < k:
         return n_chains
     sm = work[0]
-    _window_positions(nr, rc, link, table, A, k, pos)
+    _window_positions(nr, rc, link, table, A, k, pos, tl)  # tl: free until the column write
     for i in range(nr):
         lab[i] = -1
     for j in range(nr):

@@ -16,8 +16,9 @@ EMPTY_RANGE = np.zeros((1, 1), np.float32)
 
 def window_lookup(sequence: Sequence[int], k: int, alphabet: int) -> np.ndarray:
     """Array over window keys sum(code[t] * alphabet**t) -> start index in the sequence, or -1.
-    int16 when the sequence allows: 4**7 keys then take 32 KB, which stays in the L1 cache."""
-    table = np.full(alphabet**k, -1, np.int16 if len(sequence) < 2**15 else np.int32)
+    int32, the narrowest values gather instructions read (4**7 keys take 64 KB; a row's ~300 windows touch a
+    small part of it)."""
+    table = np.full(alphabet**k, -1, np.int32)
     powers = alphabet ** np.arange(k)
     for window, start in window_table(sequence, k).items():
         table[int(np.dot(window, powers))] = start
@@ -28,7 +29,7 @@ def window_lookup(sequence: Sequence[int], k: int, alphabet: int) -> np.ndarray:
 class WindowSpec:
     """Everything `kernels.label_rows` needs to know about a stripe sequence."""
 
-    table: np.ndarray  # (A**k,) int16 or int32
+    table: np.ndarray  # (A**k,) int32
     link_ok: np.ndarray  # (A, A) bool: codes allowed to be neighbouring stripes
     weights: np.ndarray  # (A, A, C) float32: edge signal a->b = sum_c w * feat[..., c], > 0 on the a side
     k: int
