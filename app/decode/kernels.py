@@ -582,6 +582,23 @@ def _window_positions(nr, rc, link, table, A, k, pos, keys):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _increasing(src, dst, n):
+    """dst[:n] = src[:n] made strictly increasing: a value not above the one before becomes that one + 1e-3.
+    A vectorised test first: the values nearly always increase already, and the fix is sequential."""
+    ok = True
+    for r in range(1, n):
+        ok &= src[r] > src[r - 1]
+    if ok:
+        for r in range(n):
+            dst[r] = src[r]
+        return
+    if n > 0:
+        dst[0] = src[0]
+    for r in range(1, n):
+        dst[r] = dst[r - 1] + 1e-3 if src[r] <= dst[r - 1] else src[r]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _label_row(
     y,
     nr,
@@ -657,23 +674,19 @@ def _label_row(
         if i1 - i0 + 1 < k:
             continue
         base = lab[i0]
-        nn = 0
+        # the nodes (stripe edges or centres) in plain vectorised loops; they must increase, and the rare chain
+        # where they do not is made increasing by the sequential pass (a dependency from node to node)
         if edges_mode:
-            for r in range(i0, i1):
-                e = edge[r]
-                if nn > 0 and e <= nx[nn - 1]:
-                    e = nx[nn - 1] + 1e-3
-                nx[nn] = e
-                nv[nn] = (base + (r - i0) + 1) * sw - 0.5
-                nn += 1
+            nn = i1 - i0
+            for q in range(nn):
+                nx[q] = edge[i0 + q]
+                nv[q] = (base + q + 1) * sw - 0.5
         else:
-            for r in range(i0, i1 + 1):
-                c = 0.5 * (rs[r] + re[r])
-                if nn > 0 and c <= nx[nn - 1]:
-                    c = nx[nn - 1] + 1e-3
-                nx[nn] = c
-                nv[nn] = (base + (r - i0)) * sw + 0.5 * (sw - 1)
-                nn += 1
+            nn = i1 - i0 + 1
+            for q in range(nn):
+                nx[q] = 0.5 * (rs[i0 + q] + re[i0 + q])
+                nv[q] = (base + q) * sw + 0.5 * (sw - 1)
+        _increasing(nx, nx, nn)
         if smooth > 0 and nn > 2 * smooth:
             # noise in single edge positions averages out over a few neighbouring edges: replace each
             # node by a local straight-line fit x(v) over +-smooth nodes (surfaces are smooth within a chain)
@@ -706,9 +719,7 @@ def _label_row(
                 for q in range(nw):
                     acc += nx[a0 + q] * (1.0 / nw + (q - smooth) * tc)
                 sm[r] = acc
-            nx[0] = sm[0]
-            for r in range(1, nn):
-                nx[r] = nx[r - 1] + 1e-3 if sm[r] <= nx[r - 1] else sm[r]
+            _increasing(sm, nx, nn)
         xa = rs[i0]  # the first and last whole pixel of the chain's end stripes
         xb = re[i1]
         if xa < 0:
