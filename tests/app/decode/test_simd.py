@@ -1,4 +1,4 @@
-"""The gathered kernels (app/decode/simd.py) against the scalar loops they replace: bit for bit."""
+"""Vectorised kernel paths (gathers of app/decode/simd.py, fast paths) against the loops they replace, bit for bit."""
 
 from __future__ import annotations
 
@@ -183,3 +183,22 @@ def test_differences_fall_back_to_the_loop_for_what_the_gathers_do_not_take():
     got64 = np.zeros((2, 6, 40), np.float64)
     _dispatched(f1[..., :3].copy(), f2[..., :3].copy(), lin, dlin, unmix.astype(np.float64), 1.0, got64)
     assert np.isfinite(got64[:, :4]).all()
+
+
+def _increasing_loop(src):
+    out = src.copy()
+    for r in range(1, len(out)):
+        out[r] = out[r - 1] + 1e-3 if src[r] <= out[r - 1] else src[r]
+    return out
+
+
+@pytest.mark.parametrize(
+    "values",
+    [[1.0, 2.0, 3.5], [1.0, 1.0, 0.5, 4.0], [3.0, 2.0, 1.0], [1.0, np.nan, 2.0], [5.0], []],
+)
+def test_nodes_made_increasing_as_the_sequential_loop_does(values):
+    src = np.array(values, np.float64)
+    dst = np.full(len(src) + 1, -7.0)
+    kernels._increasing(src, dst, len(src))
+    np.testing.assert_array_equal(dst[: len(src)], _increasing_loop(src))
+    assert dst[len(src)] == -7.0
