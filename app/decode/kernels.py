@@ -16,7 +16,8 @@ keep per-pixel work inline with coefficients in locals. The compiler vectorises 
 iteration is independent and reads plain rows: no index computed per element (x // block), no value
 carried from the iteration before through memory (a counter array incremented per pixel, a segment
 index stepped by a load), no table lookups (it emits no gathers here). Such loops ran 3-5x faster.
-The one table-heavy loop, the two-shot differences, is written as explicit gathers (`app/decode/simd.py`).
+Table reads at data-dependent indices are therefore done by explicit gathers (`app/decode/simd.py`): the
+two-shot differences whole, elsewhere into plain rows that the loop after them reads (`_gather`).
 """
 
 from __future__ import annotations
@@ -1026,6 +1027,7 @@ def _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, 
         tr1 = t_rel * max(bm1[b + 1], max(bm1[b], bm1[b + 2]))
         if b < nb8:
             x0 = b * 8
+            # written out: a loop of 8 or a slice fill measured 0.05-0.1 ms slower over a 640x480 frame
             q0[x0] = tr0
             q0[x0 + 1] = tr0
             q0[x0 + 2] = tr0
