@@ -11,6 +11,19 @@ import pytest
 
 from calibration.model import Calibration
 
+# both scripts end alike: Enter (verdict + validation scan), S (save), one drawn frame, then the label and pose
+# count the tests read
+FINISH = """
+w.handle_key(k.ENTER)
+w.handle_key(k.S)
+w.win.dispatch_events()
+w.on_draw()
+w.win.flip()
+print("LABEL", w.label.text.replace("\\n", " | "))
+print("POSES", len(w.state.poses))
+w.close()
+"""
+
 SCRIPT = textwrap.dedent(
     """
     import sys
@@ -37,16 +50,9 @@ SCRIPT = textwrap.dedent(
     w.handle_key(k.F)                      # board flat, mid-range: measure again
     w.handle_key(k.C)
     print("COLOUR", " | ".join(w.verdict))
-    w.handle_key(k.ENTER)                  # verdict + validation scan
-    w.handle_key(k.S)
-    w.win.dispatch_events()
-    w.on_draw()
-    w.win.flip()
-    print("LABEL", w.label.text.replace("\\n", " | "))
-    print("POSES", len(w.state.poses))
-    w.close()
     """
 )
+SCRIPT += FINISH
 
 
 @pytest.mark.slow
@@ -140,17 +146,9 @@ RIG_SCRIPT = textwrap.dedent(
     runs = [j for j in range(len(shown) - n + 1) if shown[j : j + n] == list(range(n))]
     print("WINDOW", len(runs), shown[-1])
     rig.set_board_pose(*fronto_pose(src.board, rig))
-    w.handle_key(k.ENTER)
-    w.handle_key(k.S)
-    w.win.dispatch_events()
-    w.on_draw()
-    w.win.flip()
-    print("LABEL", w.label.text.replace("\\n", " | "))
-    print("POSES", len(w.state.poses))
-    w.close()
-    src.close()
     """
 )
+RIG_SCRIPT += FINISH + "src.close()\n"
 
 
 @pytest.mark.slow
