@@ -756,9 +756,9 @@ def _label_row(
                 q0[r] = int(min(qf, n_copies)) if qf > 0.0 else 0
             for q in range(n_copies):
                 cnt = 0
-                base = q * copy_span
+                offset = q * copy_span
                 for r in range(nn):
-                    cnt += (q >= q0[r]) & (nv[r] + base <= ghi[r])
+                    cnt += (q >= q0[r]) & (nv[r] + offset <= ghi[r])
                 votes[q] = cnt
             best_q = -1
             best_n = 0
