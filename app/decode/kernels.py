@@ -1206,7 +1206,7 @@ def _classify_row_any(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, blo
                 d = tmp[c, x]
                 thr = tr if tr >= nz else nz
                 cd = code[x]
-                if abs(d) < thr:
+                if not abs(d) >= thr:  # (NaN: no sign, as in _classify_row and the numpy reference)
                     cd = -1
                 elif d < 0 and cd >= 0:
                     cd |= bit

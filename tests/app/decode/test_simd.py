@@ -136,17 +136,19 @@ def test_gathered_link_pass_equals_the_loop():
 @njit(cache=False)
 def _fused_codes(f1, f2, lin, dlin, unmix, t_abs, t_rel, block, code):
     W = f1.shape[1]
+    m = unmix.shape[0]
     nb = (W + block - 1) // block
-    bmax = np.empty((2, nb + 2), np.float32)
-    tmp = np.empty((6, W), np.float32)
+    bmax = np.empty((m, nb + 2), np.float32)
+    tmp = np.empty((2 * m + 2, W), np.float32)
     for y in range(f1.shape[0]):
         kernels._classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel, block, bmax, tmp, False, code[y])
 
 
+@pytest.mark.parametrize("channels", [2, 3])  # 3: _classify_row_any, the path for other channel counts
 @pytest.mark.parametrize("width", [64, 61])
-def test_row_classification_skips_nan_like_the_specification(width):
+def test_row_classification_skips_nan_like_the_specification(width, channels):
     """A camera response with NaN entries (a bad calibration) makes some differences NaN: the row kernel's
-    unrolled block maxima skip them as twoshot_classify (the specification) does, so the codes agree."""
+    block maxima skip them and give them no sign, as twoshot_classify (the specification) does."""
     rng = np.random.default_rng(7)
     f1 = rng.integers(0, 256, (6, width, 3)).astype(np.uint8)
     f2 = rng.integers(0, 256, (6, width, 3)).astype(np.uint8)
@@ -154,10 +156,10 @@ def test_row_classification_skips_nan_like_the_specification(width):
     lin = np.tile(np.linspace(0, 255, 256, dtype=np.float32), (3, 1))
     lin[1, 17] = np.nan
     dlin = np.ones((3, 256), np.float32)
-    unmix = np.array([[0.1, 1.0, 0.05], [0.0, 0.1, 1.0]], np.float32)
+    unmix = np.array([[0.1, 1.0, 0.05], [0.0, 0.1, 1.0], [1.0, 0.05, 0.0]][:channels], np.float32)
     want = np.empty((6, width), np.int8)
-    feat = np.empty((6, width, 2), np.float32)
-    noise = np.empty((6, width, 2), np.float32)
+    feat = np.empty((6, width, channels), np.float32)
+    noise = np.empty((6, width, channels), np.float32)
     args = (np.float32(2.0), np.float32(0.03))
     kernels.twoshot_classify(f1, f2, lin, dlin, unmix, *args, np.float32(0.03), 8, want, feat, noise)
     got = np.empty((6, width), np.int8)
