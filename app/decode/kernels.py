@@ -26,7 +26,16 @@ import numpy as np
 from numba import njit, types
 from numba.extending import overload
 
-from app.decode.simd import GATHER_LANES, LANES, differences16, differences16_takes, gather8, gather8_takes
+from app.decode.simd import (
+    GATHER_LANES,
+    LANES,
+    differences16,
+    differences16_takes,
+    gather8,
+    gather8_takes,
+    run_bounds16,
+    run_bounds16_takes,
+)
 
 
 def _c_array(t: types.Type) -> bool:
@@ -319,29 +328,61 @@ def _gather_impl(dst, table, idx, n):
     return scalar
 
 
+def _run_bounds(code, rs, re, rc):
+    """The runs of equal code >= 0 along a row of codes (-1: no code): run j covers pixels rs[j] .. re[j] and
+    has code rc[j]; returns how many (compiled only: sixteen pixels at a time with simd.run_bounds16 where it
+    takes the arrays, else a loop)."""
+    raise NotImplementedError("numba only")
+
+
+@overload(_run_bounds, jit_options={"nogil": True, "error_model": "numpy"})
+def _run_bounds_impl(code, rs, re, rc):
+    if run_bounds16_takes(code, rs, re, rc):
+
+        def vector(code, rs, re, rc):
+            W = code.shape[0]
+            if W < LANES + 2:
+                return _run_bounds_loop(code, 0, W, rs, re, rc, 0, 0)[0]
+            ns, ne = _run_bounds_loop(code, 0, 1, rs, re, rc, 0, 0)
+            x = 1
+            while x + LANES < W:  # the pixel after the block is read
+                ns, ne = run_bounds16(code, x, rs, re, rc, ns, ne)
+                x += LANES
+            ns, ne = _run_bounds_loop(code, x, W, rs, re, rc, ns, ne)
+            return ns
+
+        return vector
+
+    def scalar(code, rs, re, rc):
+        return _run_bounds_loop(code, 0, code.shape[0], rs, re, rc, 0, 0)[0]
+
+    return scalar
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _run_bounds_loop(code, x0, x1, rs, re, rc, ns, ne):
+    """_run_bounds over pixels x0 .. x1 - 1, appending at rs/rc[ns:] and re[ne:]; returns the new (ns, ne).
+    Appends without a branch (runs change every ~2 px: a branch per change is mispredicted half the time)."""
+    W = code.shape[0]
+    for x in range(x0, x1):
+        c = code[x]
+        prev = code[x - 1] if x > 0 else -1
+        nxt = code[x + 1] if x + 1 < W else -1
+        rs[ns] = x
+        rc[ns] = c
+        re[ne] = x
+        ns += (c >= 0) & (c != prev)
+        ne += (c >= 0) & (c != nxt)
+    return ns, ne
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def _pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge):
     """Runs of equal code along a row (code (W,), differences fr (C, W)); link and sub-pixel edge (zero
     crossing) between neighbours. trans: _transitions(wts, link_ok, n). rc needs room for 2 W + 1 values."""
     W = code.shape[0]
     C = fr.shape[0]
-    # every code change opens a candidate run at rs[nr] without a branch (runs change every ~2 px, so
-    # a branch per change is mispredicted half the time); runs of no code (-1) are squeezed out below
-    nb = 0
-    prev = -2
-    for x in range(W):
-        c = code[x]
-        rs[nb] = x
-        rc[nb] = c
-        nb += c != prev
-        prev = c
-    nr = 0
-    for j in range(nb):
-        c = rc[j]
-        rs[nr] = rs[j]
-        rc[nr] = c
-        re[nr] = (rs[j + 1] if j + 1 < nb else W) - 1
-        nr += c >= 0
+    nr = _run_bounds(code, rs, re, rc)
     t_ch, t_w, t_more = trans[1:4]
     A = wts.shape[0]
     # every link's edge as if its runs were adjacent (the usual case) without a branch; the rest are searched

@@ -1,4 +1,5 @@
-"""Table lookups as explicit vector gathers (numba intrinsics that emit LLVM vector IR).
+"""Table lookups as explicit vector gathers, and appends as compressed stores (numba intrinsics that emit LLVM
+vector IR).
 
 numba never vectorises a loop that reads a table at data-dependent indices and stores into another array:
 without type-based alias information LLVM must assume a store may change the table, so the loop stays scalar
@@ -6,9 +7,11 @@ without type-based alias information LLVM must assume a store may change the tab
 frames, splits the channels with shuffles and reads each pixel's 12 table values with `llvm.masked.gather`,
 with the same float32 operations in the same order as the scalar loop, so the results are bit-identical.
 `gather8` is the general form (8 values into a plain row), after which the compiler vectorises the
-arithmetic itself. On AVX-512 these are gather instructions (the speed-ups in the README were measured there);
-elsewhere LLVM expands them into scalar loads: the same results (the tests pass built for a generic x86-64 and
-for AVX2), at a speed not measured here.
+arithmetic itself. `run_bounds16` appends a row's run starts and ends with `llvm.masked.compressstore` (a loop
+that appends carries its count from pixel to pixel and is never vectorised). On AVX-512 these are gather and
+compress instructions (the speed-ups in the README were measured there); elsewhere LLVM expands them into
+scalar code: the same results (the tests pass built for a generic x86-64 and for AVX2), at a speed not
+measured here.
 
 The calls are written in LLVM's four-argument form (pointers, alignment, mask, pass-through); LLVM 22 drops the
 alignment operand and upgrades such calls itself. numba's on-disk cache of `kernels.py` does not notice edits
@@ -195,5 +198,61 @@ def gather8(typingctx, dst, table, idx, i):
             got = builder.fpext(got, vout) if float_ else builder.sext(got, vout)
         builder.store(got, builder.bitcast(builder.gep(d.data, [at]), vout.as_pointer()), align=1)
         return context.get_dummy_value()
+
+    return sig, codegen
+
+
+def run_bounds16_takes(code: types.Type, rs: types.Type, re: types.Type, rc: types.Type) -> bool:
+    """Whether run_bounds16 takes arrays of these (numba) types (see run_bounds16)."""
+    return _c(code, 1, (types.int8,)) and all(_c(t, 1, (types.int64,)) for t in (rs, re, rc))
+
+
+@intrinsic
+def run_bounds16(typingctx, code, x, rs, re, rc, ns, ne):
+    """The run bounds among pixels x .. x + 15 of a row of int8 codes (runs of one code >= 0; -1 is no code):
+    each pixel that starts a run (its code differs from the pixel before) appends its position to rs[ns:] and
+    its code to rc[ns:], each that ends one (differs from the pixel after) its position to re[ne:], with
+    `llvm.masked.compressstore` (vpcompressq on AVX-512: a scalar loop appends with a dependency from pixel to
+    pixel). Returns the advanced (ns, ne). code is 1-D C-contiguous int8, rs/re/rc 1-D C-contiguous int64; the
+    caller keeps 1 <= x and x + 17 <= len(code) (the neighbours are read) and room for 16 more entries."""
+    if not (run_bounds16_takes(code, rs, re, rc) and all(isinstance(t, types.Integer) for t in (x, ns, ne))):
+        return None
+    ret = types.UniTuple(types.int64, 2)
+    sig = ret(code, x, rs, re, rc, ns, ne)
+    i8 = ir.IntType(8)
+    v8 = ir.VectorType(i8, LANES)
+    v64 = ir.VectorType(_I64, LANES)
+    vmask = ir.VectorType(ir.IntType(1), LANES)
+
+    def codegen(context, builder, signature, args):
+        kinds = signature.args
+        c, s, e, k = (context.make_array(kinds[i])(context, builder, args[i]) for i in (0, 2, 3, 4))
+        xa, n_s, n_e = (context.cast(builder, args[i], kinds[i], types.int64) for i in (1, 5, 6))
+
+        def load(offset):
+            at = builder.add(xa, ir.Constant(_I64, offset))
+            return builder.load(builder.bitcast(builder.gep(c.data, [at]), v8.as_pointer()), align=1)
+
+        prev, cur, nxt = load(-1), load(0), load(1)
+        coded = builder.icmp_signed(">=", cur, ir.Constant(v8, [0] * LANES))
+        start = builder.and_(coded, builder.icmp_signed("!=", cur, prev))
+        end = builder.and_(coded, builder.icmp_signed("!=", cur, nxt))
+        pos = builder.add(_splat(builder, xa, v64), ir.Constant(v64, list(range(LANES))))
+        store = cgutils.get_or_insert_function(
+            builder.module,
+            ir.FunctionType(ir.VoidType(), [v64, _I64.as_pointer(), vmask]),
+            f"llvm.masked.compressstore.v{LANES}i64",
+        )
+        builder.call(store, [pos, builder.gep(s.data, [n_s]), start])
+        builder.call(store, [builder.sext(cur, v64), builder.gep(k.data, [n_s]), start])
+        builder.call(store, [pos, builder.gep(e.data, [n_e]), end])
+        i16 = ir.IntType(LANES)
+        popcount = cgutils.get_or_insert_function(builder.module, ir.FunctionType(i16, [i16]), f"llvm.ctpop.i{LANES}")
+
+        def count(mask):
+            return builder.zext(builder.call(popcount, [builder.bitcast(mask, i16)]), _I64)
+
+        out = (builder.add(n_s, count(start)), builder.add(n_e, count(end)))
+        return context.make_tuple(builder, ret, out)
 
     return sig, codegen

@@ -204,3 +204,35 @@ def test_nodes_made_increasing_as_the_sequential_loop_does(values):
     kernels._increasing(src, dst, len(src))
     np.testing.assert_array_equal(dst[: len(src)], _increasing_loop(src))
     assert dst[len(src)] == -7.0
+
+
+@njit(cache=False)
+def _run_bounds(code, rs, re, rc):
+    return kernels._run_bounds(code, rs, re, rc)
+
+
+def _runs_by_hand(code):
+    runs, x = [], 0
+    while x < len(code):
+        x1 = x
+        while x1 + 1 < len(code) and code[x1 + 1] == code[x]:
+            x1 += 1
+        if code[x] >= 0:
+            runs.append((x, x1, int(code[x])))
+        x = x1 + 1
+    return runs
+
+
+@pytest.mark.parametrize("width", [1, 2, 17, 18, 19, 34, 35, 640, 641])
+def test_compressed_run_bounds_equal_the_runs_by_hand(width):
+    rng = np.random.default_rng(width)
+    for trial in range(40):
+        # runs of 1-3 pixels of codes 0..3 and no code (-1), like a two-shot row; the first trials all one code
+        code = np.repeat(rng.integers(-1, 4, width), rng.integers(1, 4, width))[:width].astype(np.int8)
+        if trial < 2:
+            code[:] = trial - 1
+        expected = _runs_by_hand(code)
+        for row in (code, np.repeat(code, 2)[::2]):  # C-contiguous (compressed stores) and strided (the loop)
+            rs, re, rc = (np.full(2 * width + 16, -7, np.int64) for _ in range(3))
+            n = _run_bounds(row, rs, re, rc)
+            assert list(zip(rs[:n].tolist(), re[:n].tolist(), rc[:n].tolist(), strict=True)) == expected
