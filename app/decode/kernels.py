@@ -673,11 +673,17 @@ def _label_row(
     out_chain,
     n_chains,
     span,
+    tol,
+    agree,
+    disagree,
+    npx,
 ):
     """Windows -> confirmed labels -> chains -> interpolated columns of row y. Returns n_chains.
 
     span[c] = (first, last) pixel chain c may write (when span has room for it: the fused path's vote counts
-    walk these spans instead of whole rows). work (4, n): row 0 the smoothed nodes, then the slopes; rows 1-2
+    walk these spans instead of whole rows). When npx has room for chain c, its pixels are counted into npx[c]
+    and, against row y - 1 (labelled, not yet checked), its vertical votes within tol into agree[c] and
+    disagree[c] as _row_votes would, while the columns are written (chains of a row do not overlap). work (4, n): row 0 the smoothed nodes, then the slopes; rows 1-2
     the copy vote's range ends, rows 1-3 the column write's gathered node values."""
     W = out_col.shape[1]
     if nr < k:
@@ -842,16 +848,44 @@ def _label_row(
         _gather(gv, nv, seg_of, nxp)
         _gather(gx, nx, seg_of, nxp)
         _gather(gs, sm, seg_of, nxp)
-        for q in range(nxp):
-            xx = xa + q
-            v = gv[q] + (xx - gx[q]) * gs[q]
-            ok = (v >= lo_v) & (v <= hi_v)
-            v += shift
-            if use_range:
-                ok &= (v >= lo[y, xx]) & (v <= hi[y, xx])
-            if ok:
-                out_col[y, xx] = v
-                out_chain[y, xx] = n_chains
+        if n_chains < npx.shape[0]:
+            # the row above is read at y - 1 >= 0 and its votes masked at y = 0 (one loop, vectorised)
+            up = max(y - 1, 0)
+            above = y > 0
+            tol32 = np.float32(tol)
+            n = 0
+            ag = 0
+            dg = 0
+            for q in range(nxp):
+                xx = xa + q
+                v = gv[q] + (xx - gx[q]) * gs[q]
+                ok = (v >= lo_v) & (v <= hi_v)
+                v += shift
+                if use_range:
+                    ok &= (v >= lo[y, xx]) & (v <= hi[y, xx])
+                v32 = np.float32(v)
+                if ok:
+                    out_col[y, xx] = v32
+                    out_chain[y, xx] = n_chains
+                n += ok
+                pair = ok & above & (out_chain[up, xx] >= 0)
+                close = abs(out_col[up, xx] - v32) <= tol32
+                ag += pair & close
+                dg += pair & (not close)
+            npx[n_chains] = n
+            agree[n_chains] = ag
+            disagree[n_chains] = dg
+        else:
+            for q in range(nxp):
+                xx = xa + q
+                v = gv[q] + (xx - gx[q]) * gs[q]
+                ok = (v >= lo_v) & (v <= hi_v)
+                v += shift
+                if use_range:
+                    ok &= (v >= lo[y, xx]) & (v <= hi[y, xx])
+                if ok:
+                    out_col[y, xx] = v
+                    out_chain[y, xx] = n_chains
         if n_chains < span.shape[0]:
             span[n_chains, 0] = xa
             span[n_chains, 1] = xb
@@ -901,6 +935,7 @@ def label_rows(
     et = np.empty((m, n), np.int64)
     cnt = np.zeros(m, np.int64)
     no_span = np.empty((0, 2), np.int32)
+    no_count = np.empty(0, np.int32)
     n_chains = 0
     trans = _transitions(wts, link_ok, n)
     for y in range(H):
@@ -940,6 +975,10 @@ def label_rows(
             out_chain,
             n_chains,
             no_span,
+            0.0,
+            no_count,
+            no_count,
+            no_count,
         )
     return n_chains
 
@@ -1354,12 +1393,14 @@ def twoshot_rows(
         n_e = _label_row(
             y, nr, rs, re, rc, link, edge, tl, pos, lab, nx, nv, table, A, k, period, sw,
             n_copies, proj_w, lo, hi, use_range, edges_mode, min_frac, smooth, sm, votes, col_e, chain_e, n_e, span_e,
+            tol, agree_e, dis_e, npx_e,
         )  # fmt: skip
         if mode == 2:
             nr = _pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge)
             n_r = _label_row(
                 y, nr, rs, re, rc, link, edge, tl, pos, lab, nx, nv, table, A, k, period, sw, n_copies,
                 proj_w, lo, hi, use_range, edges_mode, min_frac, smooth, sm, votes, col_r, chain_r, n_r, span_r,
+                tol, agree_r, dis_r, npx_r,
             )  # fmt: skip
         first_e[y + 1] = n_e
         first_r[y + 1] = n_r
@@ -1404,32 +1445,14 @@ def _row_scratch(n, W, n_copies):
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _row_votes(col, chain, y, tol, agree, disagree, npx, first, span):
-    """Count the pixels of row y's chains, and the agreement between rows y - 1 and y for the chains of both.
+    """Add the vertical agreement between rows y - 1 and y to the chains of row y - 1 (_label_row counted the
+    chains of row y, their pixels and their votes against row y - 1, while writing them).
 
-    Walks each chain's span (from _label_row) with the counts in registers, then adds them once per chain:
-    a per-pixel increment of a per-chain counter chains every pixel of a chain through memory."""
-    tol32 = np.float32(tol)  # compared with float32 differences without a conversion per pixel
-    for c in range(first[y], first[y + 1]):
-        n = 0
-        ag = 0
-        dg = 0
-        if y == 0:
-            for x in range(span[c, 0], span[c, 1] + 1):
-                n += chain[y, x] == c
-        else:
-            for x in range(span[c, 0], span[c, 1] + 1):
-                mine = chain[y, x] == c
-                n += mine
-                pair = mine & (chain[y - 1, x] >= 0)
-                close = abs(col[y - 1, x] - col[y, x]) <= tol32
-                ag += pair & close
-                dg += pair & (not close)
-        npx[c] = n  # the chain's first counts: the arrays need no zeroing
-        agree[c] = ag
-        disagree[c] = dg
+    Walks each chain's span with the counts in registers, then adds them once per chain: a per-pixel
+    increment of a per-chain counter chains every pixel of a chain through memory."""
     if y == 0:
         return
-    # the same pixel pairs, counted for the chains of row y - 1
+    tol32 = np.float32(tol)  # compared with float32 differences without a conversion per pixel
     for c in range(first[y - 1], first[y]):
         ag = 0
         dg = 0
