@@ -18,6 +18,12 @@ carried from the iteration before through memory (a counter array incremented pe
 index stepped by a load), no table lookups (it emits no gathers here). Such loops ran 3-5x faster.
 Table reads at data-dependent indices are therefore done by explicit gathers (`app/decode/simd.py`): the
 two-shot differences whole, elsewhere into plain rows that the loop after them reads (`_gather`).
+
+Kernels that allocate nothing are compiled without reference counting (numba's `_nrt=False`): in them every
+array view (a row, a slice, a tuple's member) increfs and decrefs its parent through an atomic runtime
+call, 15 % of the two-shot decoder's time. Their arrays all belong to the caller for the whole call, and
+they return none. Kernels that allocate (`twoshot_rows`, `label_rows`, ...) keep it; numba refuses to
+compile an allocation without it.
 """
 
 from __future__ import annotations
@@ -54,7 +60,7 @@ def _wrap(v, period):
     return v - period if v >= period else v
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _block_extrema(feat, y, c, block, nb, bmax, bmin, absolute):
     """Per block of `block` pixels along row y: max and min of feat[y, :, c] (or of |feat|)."""
     W = feat.shape[1]
@@ -242,7 +248,7 @@ def _link_pass(nr, fr, A, trans, gap_max, rs, re, rc, link, edge, slow):
     raise NotImplementedError("numba only")
 
 
-@overload(_link_pass, jit_options={"nogil": True, "error_model": "numpy"})
+@overload(_link_pass, jit_options={"nogil": True, "error_model": "numpy", "_nrt": False})
 def _link_pass_impl(nr, fr, A, trans, gap_max, rs, re, rc, link, edge, slow):
     if _c_array(fr) and fr.dtype == types.float32:
 
@@ -307,7 +313,7 @@ def _gather(dst, table, idx, n):
     raise NotImplementedError("numba only")
 
 
-@overload(_gather, jit_options={"nogil": True, "error_model": "numpy"})
+@overload(_gather, jit_options={"nogil": True, "error_model": "numpy", "_nrt": False})
 def _gather_impl(dst, table, idx, n):
     if gather8_takes(dst, table, idx):
 
@@ -335,7 +341,7 @@ def _run_bounds(code, rs, re, rc):
     raise NotImplementedError("numba only")
 
 
-@overload(_run_bounds, jit_options={"nogil": True, "error_model": "numpy"})
+@overload(_run_bounds, jit_options={"nogil": True, "error_model": "numpy", "_nrt": False})
 def _run_bounds_impl(code, rs, re, rc):
     if run_bounds16_takes(code, rs, re, rc):
 
@@ -359,7 +365,7 @@ def _run_bounds_impl(code, rs, re, rc):
     return scalar
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _run_bounds_loop(code, x0, x1, rs, re, rc, ns, ne):
     """_run_bounds over pixels x0 .. x1 - 1, appending at rs/rc[ns:] and re[ne:]; returns the new (ns, ne).
     Appends without a branch (runs change every ~2 px: a branch per change is mispredicted half the time)."""
@@ -376,7 +382,7 @@ def _run_bounds_loop(code, x0, x1, rs, re, rc, ns, ne):
     return ns, ne
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge):
     """Runs of equal code along a row (code (W,), differences fr (C, W)); link and sub-pixel edge (zero
     crossing) between neighbours. trans: _transitions(wts, link_ok, n). rc needs room for 2 W + 1 values."""
@@ -425,7 +431,7 @@ def _pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge):
     return nr
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _sign_events(fr, tr, c, gap_max, ex, es, et):
     """Events of channel c along a row (differences fr (C, W), sign thresholds tr (C, W)): 0 = becomes
     known (sign es), 1 = sign change, 2 = unknown."""
@@ -478,7 +484,7 @@ def _sign_events(fr, tr, c, gap_max, ex, es, et):
     return n
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _event_runs2(ex, es, et, n0, n1, rs, re, rc, link, edge, left, right):
     """_event_runs' merge of the channels' events, written out for two channels with the state in locals
     (the general loop over channels cost more than finding the events). Ties go to channel 0, as there."""
@@ -577,7 +583,7 @@ def _event_runs(fr, tr, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, 
     return nr
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _window_positions(nr, rc, link, table, A, k, pos, keys):
     """pos[j] = the sequence position of the window of runs j..j+k-1 (its key sum_t rc[j + t] * A**t through
     the table), -1 where the window is not k linked runs or not in the sequence.
@@ -623,7 +629,7 @@ def _window_positions(nr, rc, link, table, A, k, pos, keys):
         pos[j] = -1
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _increasing(src, dst, n):
     """dst[:n] = src[:n] made strictly increasing: a value not above the one before becomes that one + 1e-3.
     A vectorised test first: the values nearly always increase already, and the fix is sequential."""
@@ -640,7 +646,7 @@ def _increasing(src, dst, n):
         dst[r] = dst[r - 1] + 1e-3 if src[r] <= dst[r - 1] else src[r]
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _label_row(
     y,
     nr,
@@ -683,8 +689,9 @@ def _label_row(
     span[c] = (first, last) pixel chain c may write (when span has room for it: the fused path's vote counts
     walk these spans instead of whole rows). When npx has room for chain c, its pixels are counted into npx[c]
     and, against row y - 1 (labelled, not yet checked), its vertical votes within tol into agree[c] and
-    disagree[c] as _row_votes would, while the columns are written (chains of a row do not overlap). work (4, n): row 0 the smoothed nodes, then the slopes; rows 1-2
-    the copy vote's range ends, rows 1-3 the column write's gathered node values."""
+    disagree[c] as _row_votes would, while the columns are written (chains of a row do not overlap).
+    work (4, n): row 0 the smoothed nodes, then the slopes; rows 1-2 the copy vote's range ends, rows 1-3 the
+    column write's gathered node values."""
     W = out_col.shape[1]
     if nr < k:
         return n_chains
@@ -1038,7 +1045,7 @@ def vertical_check(out_col, out_chain, n_chains, tol, min_support):
     return dropped
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, want_thr, code):
     """twoshot_classify for row y of the frames: codes into code (W,), the unmixed differences into
     tmp[0:m] and, with want_thr, the zero-crossing sign thresholds into tmp[m:2m] (tmp is (2m + 2, W); the
@@ -1158,7 +1165,7 @@ def _differences(f1, f2, y, lin, dlin, unmix, ta, tmp):
     raise NotImplementedError("numba only")
 
 
-@overload(_differences, jit_options={"nogil": True, "error_model": "numpy"})
+@overload(_differences, jit_options={"nogil": True, "error_model": "numpy", "_nrt": False})
 def _differences_impl(f1, f2, y, lin, dlin, unmix, ta, tmp):
     if f1 == f2 and differences16_takes(f1, lin, dlin, unmix, ta, tmp):
 
@@ -1190,7 +1197,7 @@ def _differences_impl(f1, f2, y, lin, dlin, unmix, ta, tmp):
     return scalar
 
 
-@njit(nogil=True, error_model="numpy")
+@njit(nogil=True, error_model="numpy", _nrt=False)
 def _differences_loop(f1, f2, y, lin, dlin, unmix, ta, tmp):
     _row_differences(
         f1[y], f2[y], lin[0], lin[1], lin[2], dlin[0], dlin[1], dlin[2], unmix[0, 0], unmix[0, 1], unmix[0, 2],
@@ -1198,7 +1205,7 @@ def _differences_loop(f1, f2, y, lin, dlin, unmix, ta, tmp):
     )  # fmt: skip
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _row_differences(a, b, l0, l1, l2, dl0, dl1, dl2, u00, u01, u02, u10, u11, u12, ta, fv0, fv1, nz0, nz1):
     """Unmixed linear frame2 - frame1 of the two pattern channels, and their noise floors, for one row."""
     w00 = abs(u00)
@@ -1226,7 +1233,7 @@ def _row_differences(a, b, l0, l1, l2, dl0, dl1, dl2, u00, u01, u02, u10, u11, u
         nz1[x] = ta * (w10 * n0 + w11 * n1 + w12 * n2)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _classify_row_any(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, code):
     """_classify_row for any number of pattern channels (its thresholds are always written)."""
     W = code.shape[0]
@@ -1443,7 +1450,7 @@ def _row_scratch(n, W, n_copies):
     return rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, votes
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _row_votes(col, chain, y, tol, agree, disagree, npx, first, span):
     """Add the vertical agreement between rows y - 1 and y to the chains of row y - 1 (_label_row counted the
     chains of row y, their pixels and their votes against row y - 1, while writing them).
@@ -1465,7 +1472,7 @@ def _row_votes(col, chain, y, tol, agree, disagree, npx, first, span):
         disagree[c] += dg
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _drop_chains(y, col, chain, first, agree, disagree, npx, span, min_support):
     """vertical_check's verdict on the chains of row y, which have all their votes; returns how many it dropped."""
     dropped = 0
@@ -1479,7 +1486,7 @@ def _drop_chains(y, col, chain, first, agree, disagree, npx, span, min_support):
     return dropped
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _finish_row(
     y, col_e, chain_e, col_r, chain_r, conf, first_e, first_r, agree_e, dis_e, npx_e, agree_r, dis_r, npx_r, check,
     min_support, cap, stats,
