@@ -646,6 +646,81 @@ def _increasing(src, dst, n):
         dst[r] = dst[r - 1] + 1e-3 if src[r] <= dst[r - 1] else src[r]
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _window_label(c, t, period):
+    """The label a confirmed window at position c gives its run t, -1 for no window (c < 0); int32 throughout
+    (numba widens int32 arithmetic to int64, which would halve the vector)."""
+    v = np.int32(c + t)
+    v = np.int32(v - period) if v >= period else v
+    return v if c >= 0 else np.int32(-1)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _merge_labels(a, b):
+    """Two windows' int32 labels for one run: -1 none, -2 disagreeing (associative and commutative)."""
+    return b if a == -1 else (a if (b == -1) | (b == a) else np.int32(-2))
+
+
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
+def _confirmed_labels(nr, pos, lab, k, period, cw):
+    """lab[i] = the label of run i from the confirmed windows over it (a window confirmed by an adjacent one
+    that continues it), -1 where none, -2 where they disagree. cw: scratch for nr + k - 1 values.
+
+    For the usual k = 7 in two branch-free vectorised passes (each window confirmed or not, then each run's
+    label from its seven windows): the loop over windows below branches on every window and runs at a
+    mispredicted branch per few runs. The same labels: continuing windows give their shared runs the same
+    labels, so taking every confirmed window's labels changes nothing."""
+    if k == 7 and nr >= 3:
+        # cw[j + 6] = window j's position where it is confirmed, else -1 (and -1 before window 0); int32, so
+        # the labels below are computed eight to a vector
+        cw = cw.view(np.int32)
+        none = np.int32(-1)
+        for j in range(6):
+            cw[j] = none
+        for j in range(nr):
+            p = pos[j]
+            pp = pos[j - 1] if j > 0 else -1
+            pn = pos[j + 1] if j + 1 < nr else -1
+            after = _wrap(pp + 1, period)
+            nxt = _wrap(p + 1, period)
+            ok = ((pp >= 0) & (p == after)) | ((p >= 0) & (pn == nxt))
+            cw[j + 6] = np.int32(p) if ok else none
+        per = np.int32(period)
+        for i in range(nr):
+            # window i - t gives run i the label p + t; the seven merged as a tree (the merge is associative)
+            c0 = _window_label(cw[i + 6], 0, per)
+            c1 = _window_label(cw[i + 5], 1, per)
+            c2 = _window_label(cw[i + 4], 2, per)
+            c3 = _window_label(cw[i + 3], 3, per)
+            c4 = _window_label(cw[i + 2], 4, per)
+            c5 = _window_label(cw[i + 1], 5, per)
+            c6 = _window_label(cw[i], 6, per)
+            lv = _merge_labels(
+                _merge_labels(_merge_labels(c0, c1), _merge_labels(c2, c3)), _merge_labels(_merge_labels(c4, c5), c6)
+            )
+            lab[i] = lv
+        return
+    for i in range(nr):
+        lab[i] = -1
+    for j in range(nr):
+        p = pos[j]
+        if p < 0:
+            continue
+        # a window that continues the previous one confirms it too, and that one already gave runs
+        # j..j+k-2 these same labels (or marked them -2): only the last run is new
+        follows = j > 0 and pos[j - 1] >= 0 and p == _wrap(pos[j - 1] + 1, period)
+        conf = follows or (j + 1 < nr and pos[j + 1] >= 0 and pos[j + 1] == _wrap(p + 1, period))
+        if not conf:
+            continue
+        for t in range(k - 1 if follows else 0, k):
+            i = j + t
+            lv = _wrap(p + t, period)
+            if lab[i] == -1:
+                lab[i] = lv
+            elif lab[i] != lv:
+                lab[i] = -2
+
+
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _label_row(
     y,
@@ -697,25 +772,7 @@ def _label_row(
         return n_chains
     sm = work[0]
     _window_positions(nr, rc, link, table, A, k, pos, tl)  # tl: free until the column write
-    for i in range(nr):
-        lab[i] = -1
-    for j in range(nr):
-        p = pos[j]
-        if p < 0:
-            continue
-        # a window that continues the previous one confirms it too, and that one already gave runs
-        # j..j+k-2 these same labels (or marked them -2): only the last run is new
-        follows = j > 0 and pos[j - 1] >= 0 and p == _wrap(pos[j - 1] + 1, period)
-        conf = follows or (j + 1 < nr and pos[j + 1] >= 0 and pos[j + 1] == _wrap(p + 1, period))
-        if not conf:
-            continue
-        for t in range(k - 1 if follows else 0, k):
-            i = j + t
-            lv = _wrap(p + t, period)
-            if lab[i] == -1:
-                lab[i] = lv
-            elif lab[i] != lv:
-                lab[i] = -2
+    _confirmed_labels(nr, pos, lab, k, period, tl)
     i = 0
     while i < nr:
         if lab[i] < 0:
@@ -1442,7 +1499,7 @@ def _row_scratch(n, W, n_copies):
     right = np.zeros(n, np.float64)
     tl = np.zeros(n + 1, np.int64)
     pos = np.empty(n, np.int64)
-    lab = np.empty(n, np.int64)
+    lab = np.empty(n, np.int32)  # run labels (< period): eight to a vector in _confirmed_labels
     nx = np.empty(n, np.float64)
     nv = np.empty(n, np.float64)
     sm = np.empty((4, n), np.float64)

@@ -236,3 +236,35 @@ def test_compressed_run_bounds_equal_the_runs_by_hand(width):
             rs, re, rc = (np.full(2 * width + 16, -7, np.int64) for _ in range(3))
             n = _run_bounds(row, rs, re, rc)
             assert list(zip(rs[:n].tolist(), re[:n].tolist(), rc[:n].tolist(), strict=True)) == expected
+
+
+def _labels_by_windows(pos, k, period):
+    """The confirmed labels window by window (the loop _confirmed_labels replaces for k = 7)."""
+    nr = len(pos)
+    lab = [-1] * nr
+    for j, p in enumerate(pos):
+        if p < 0:
+            continue
+        after_prev = j > 0 and pos[j - 1] >= 0 and p == (pos[j - 1] + 1) % period
+        before_next = j + 1 < nr and pos[j + 1] >= 0 and pos[j + 1] == (p + 1) % period
+        if not (after_prev or before_next):
+            continue
+        for t in range(k):
+            lv = (p + t) % period
+            lab[j + t] = lv if lab[j + t] in (-1, lv) else -2
+    return lab
+
+
+@pytest.mark.parametrize("nr", [1, 2, 3, 7, 8, 40, 300])
+def test_vectorised_confirmed_labels_equal_the_window_loop(nr):
+    rng = np.random.default_rng(nr)
+    period, k = 16, 7
+    for trial in range(60):
+        # continuing stretches (with wrap-around), isolated windows, gaps and clashing stretches
+        steps = np.where(rng.random(nr) < 0.8, 1, rng.integers(0, period, nr))
+        pos = np.cumsum(steps) if trial % 3 else rng.integers(-1, 4, nr)
+        pos = np.where(rng.random(nr) < 0.1, -1, pos % period).astype(np.int64)
+        pos[max(nr - k + 1, 0) :] = -1  # no window starts in the last k - 1 runs
+        lab = np.full(nr, -9, np.int32)
+        kernels._confirmed_labels(nr, pos, lab, k, period, np.empty(nr + k, np.int64))
+        assert lab.tolist() == _labels_by_windows(pos.tolist(), k, period)
