@@ -35,6 +35,8 @@ from numba.extending import overload
 from app.decode.simd import (
     GATHER_LANES,
     LANES,
+    append_where16,
+    append_where16_takes,
     differences16,
     differences16_takes,
     gather8,
@@ -380,6 +382,39 @@ def _run_bounds_loop(code, x0, x1, rs, re, rc, ns, ne):
         ns += (c >= 0) & (c != prev)
         ne += (c >= 0) & (c != nxt)
     return ns, ne
+
+
+def _append_where(flags, n, out):
+    """out[:m] = the positions i < n where flags[i] is nonzero; returns m (compiled only: sixteen at a time with
+    simd.append_where16 where it takes the arrays, else a loop)."""
+    raise NotImplementedError("numba only")
+
+
+@overload(_append_where, jit_options={"nogil": True, "error_model": "numpy", "_nrt": False})
+def _append_where_impl(flags, n, out):
+    if append_where16_takes(flags, out):
+
+        def vector(flags, n, out):
+            m = 0
+            x = 0
+            while x + LANES <= n:
+                m = append_where16(flags, x, out, m)
+                x += LANES
+            for i in range(x, n):
+                out[m] = i
+                m += flags[i] != 0
+            return m
+
+        return vector
+
+    def scalar(flags, n, out):
+        m = 0
+        for i in range(n):
+            out[m] = i
+            m += flags[i] != 0
+        return m
+
+    return scalar
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
@@ -749,6 +784,8 @@ def _label_row(
     min_frac,
     smooth,
     work,
+    marks,
+    bounds,
     votes,
     out_col,
     out_chain,
@@ -766,23 +803,31 @@ def _label_row(
     and, against row y - 1 (labelled, not yet checked), its vertical votes within tol into agree[c] and
     disagree[c] as _row_votes would, while the columns are written (chains of a row do not overlap).
     work (4, n): row 0 the smoothed nodes, then the slopes; rows 1-2 the copy vote's range ends, rows 1-3 the
-    column write's gathered node values."""
+    column write's gathered node values. marks (3, n) int8 and bounds (2, n) int64: the chains' ends."""
     W = out_col.shape[1]
     if nr < k:
         return n_chains
     sm = work[0]
     _window_positions(nr, rc, link, table, A, k, pos, tl)  # tl: free until the column write
     _confirmed_labels(nr, pos, lab, k, period, tl)
-    i = 0
-    while i < nr:
-        if lab[i] < 0:
-            i += 1
-            continue
-        i0 = i
-        while i + 1 < nr and link[i] and lab[i + 1] == _wrap(lab[i] + 1, period):
-            i += 1
-        i1 = i
-        i += 1
+    # chains: maximal stretches of labelled runs, each linked to the next with the next label. Where each
+    # starts and ends is marked in vectorised loops and the marks listed (a scan run by run branched on each)
+    cont = marks[0]
+    starts = marks[1]
+    ends = marks[2]
+    for i in range(nr):
+        li = lab[i]
+        nxt = lab[i + 1] if i + 1 < nr else -1
+        cont[i] = link[i] & (li >= 0) & (nxt == _wrap(li + 1, period))
+    for i in range(nr):
+        labelled = lab[i] >= 0
+        starts[i] = labelled & ((i == 0) or (cont[i - 1] == 0))
+        ends[i] = labelled & (cont[i] == 0)
+    n_found = _append_where(starts, nr, bounds[0])
+    _append_where(ends, nr, bounds[1])
+    for f in range(n_found):
+        i0 = bounds[0, f]
+        i1 = bounds[1, f]
         if i1 - i0 + 1 < k:
             continue
         base = lab[i0]
@@ -993,7 +1038,7 @@ def label_rows(
     m = feat.shape[2]
     A = link_ok.shape[0]
     n = (m + 1) * (2 * W + 8)
-    rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, votes = _row_scratch(n, W, n_copies)
+    rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, marks, bounds, votes = _row_scratch(n, W, n_copies)
     ex = np.empty((m, n), np.float64)
     es = np.empty((m, n), np.int64)
     et = np.empty((m, n), np.int64)
@@ -1034,6 +1079,8 @@ def label_rows(
             min_frac,
             smooth,
             sm,
+            marks,
+            bounds,
             votes,
             out_col,
             out_chain,
@@ -1419,7 +1466,7 @@ def twoshot_rows(
     tr = tmp[m:]
     code = np.empty(W, np.int8)
     n = (m + 1) * (2 * W + 8)
-    rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, votes = _row_scratch(n, W, n_copies)
+    rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, marks, bounds, votes = _row_scratch(n, W, n_copies)
     ex = np.empty((m, n), np.float64)
     es = np.empty((m, n), np.int64)
     et = np.empty((m, n), np.int64)
@@ -1455,16 +1502,16 @@ def twoshot_rows(
         else:
             nr = _event_runs(fr, tr, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right)
         n_e = _label_row(
-            y, nr, rs, re, rc, link, edge, tl, pos, lab, nx, nv, table, A, k, period, sw,
-            n_copies, proj_w, lo, hi, use_range, edges_mode, min_frac, smooth, sm, votes, col_e, chain_e, n_e, span_e,
+            y, nr, rs, re, rc, link, edge, tl, pos, lab, nx, nv, table, A, k, period, sw, n_copies, proj_w,
+            lo, hi, use_range, edges_mode, min_frac, smooth, sm, marks, bounds, votes, col_e, chain_e, n_e, span_e,
             tol, agree_e, dis_e, npx_e,
         )  # fmt: skip
         if mode == 2:
             nr = _pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge)
             n_r = _label_row(
-                y, nr, rs, re, rc, link, edge, tl, pos, lab, nx, nv, table, A, k, period, sw, n_copies,
-                proj_w, lo, hi, use_range, edges_mode, min_frac, smooth, sm, votes, col_r, chain_r, n_r, span_r,
-                tol, agree_r, dis_r, npx_r,
+                y, nr, rs, re, rc, link, edge, tl, pos, lab, nx, nv, table, A, k, period, sw, n_copies, proj_w,
+                lo, hi, use_range, edges_mode, min_frac, smooth, sm, marks, bounds, votes, col_r, chain_r, n_r,
+                span_r, tol, agree_r, dis_r, npx_r,
             )  # fmt: skip
         first_e[y + 1] = n_e
         first_r[y + 1] = n_r
@@ -1503,8 +1550,10 @@ def _row_scratch(n, W, n_copies):
     nx = np.empty(n, np.float64)
     nv = np.empty(n, np.float64)
     sm = np.empty((4, n), np.float64)
+    marks = np.empty((3, n), np.int8)
+    bounds = np.empty((2, n), np.int64)
     votes = np.zeros(max(n_copies, 1), np.int64)
-    return rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, votes
+    return rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, marks, bounds, votes
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)

@@ -7,8 +7,9 @@ without type-based alias information LLVM must assume a store may change the tab
 frames, splits the channels with shuffles and reads each pixel's 12 table values with `llvm.masked.gather`,
 with the same float32 operations in the same order as the scalar loop, so the results are bit-identical.
 `gather8` is the general form (8 values into a plain row), after which the compiler vectorises the
-arithmetic itself. `run_bounds16` appends a row's run starts and ends with `llvm.masked.compressstore` (a loop
-that appends carries its count from pixel to pixel and is never vectorised). On AVX-512 these are gather and
+arithmetic itself. `run_bounds16` appends a row's run starts and ends, and `append_where16` the positions of
+nonzero flags, with `llvm.masked.compressstore` (a loop that appends carries its count from element to element
+and is never vectorised). On AVX-512 these are gather and
 compress instructions (the speed-ups in the README were measured there); elsewhere LLVM expands them into
 scalar code: the same results (the tests pass built for a generic x86-64 and for AVX2), at a speed not
 measured here.
@@ -254,5 +255,47 @@ def run_bounds16(typingctx, code, x, rs, re, rc, ns, ne):
 
         out = (builder.add(n_s, count(start)), builder.add(n_e, count(end)))
         return context.make_tuple(builder, ret, out)
+
+    return sig, codegen
+
+
+def append_where16_takes(flags: types.Type, out: types.Type) -> bool:
+    """Whether append_where16 takes arrays of these (numba) types (see append_where16)."""
+    return _c(flags, 1, (types.int8, types.uint8, types.boolean)) and _c(out, 1, (types.int64,))
+
+
+@intrinsic
+def append_where16(typingctx, flags, x, out, n):
+    """Append to out[n:] the positions x + l (l < 16) where flags[x + l] is nonzero, with
+    `llvm.masked.compressstore`; returns the new n. flags is 1-D C-contiguous int8/uint8/bool, out 1-D
+    C-contiguous int64; the caller keeps x + 16 <= len(flags) and room for 16 more entries in out."""
+    if not (append_where16_takes(flags, out) and isinstance(x, types.Integer) and isinstance(n, types.Integer)):
+        return None
+    sig = types.int64(flags, x, out, n)
+    v8 = ir.VectorType(ir.IntType(8), LANES)
+    v64 = ir.VectorType(_I64, LANES)
+    vmask = ir.VectorType(ir.IntType(1), LANES)
+
+    def codegen(context, builder, signature, args):
+        kinds = signature.args
+        f, o = (
+            context.make_array(kinds[0])(context, builder, args[0]),
+            context.make_array(kinds[2])(context, builder, args[2]),
+        )
+        xa = context.cast(builder, args[1], kinds[1], types.int64)
+        na = context.cast(builder, args[3], kinds[3], types.int64)
+        # (numba stores a bool as one byte: 0 or 1)
+        raw = builder.load(builder.bitcast(builder.gep(f.data, [xa]), v8.as_pointer()), align=1)
+        keep = builder.icmp_unsigned("!=", raw, ir.Constant(v8, [0] * LANES))
+        pos = builder.add(_splat(builder, xa, v64), ir.Constant(v64, list(range(LANES))))
+        store = cgutils.get_or_insert_function(
+            builder.module,
+            ir.FunctionType(ir.VoidType(), [v64, _I64.as_pointer(), vmask]),
+            f"llvm.masked.compressstore.v{LANES}i64",
+        )
+        builder.call(store, [pos, builder.gep(o.data, [na]), keep])
+        i16 = ir.IntType(LANES)
+        popcount = cgutils.get_or_insert_function(builder.module, ir.FunctionType(i16, [i16]), f"llvm.ctpop.i{LANES}")
+        return builder.add(na, builder.zext(builder.call(popcount, [builder.bitcast(keep, i16)]), _I64))
 
     return sig, codegen

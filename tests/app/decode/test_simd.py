@@ -268,3 +268,19 @@ def test_vectorised_confirmed_labels_equal_the_window_loop(nr):
         lab = np.full(nr, -9, np.int32)
         kernels._confirmed_labels(nr, pos, lab, k, period, np.empty(nr + k, np.int64))
         assert lab.tolist() == _labels_by_windows(pos.tolist(), k, period)
+
+
+@njit(cache=False)
+def _append_where(flags, n, out):
+    return kernels._append_where(flags, n, out)
+
+
+@pytest.mark.parametrize("n", [0, 1, 15, 16, 17, 33, 300])
+def test_compressed_positions_equal_flatnonzero(n):
+    rng = np.random.default_rng(n)
+    flags = rng.random(n + 5) < 0.3
+    expected = np.flatnonzero(flags[:n]).tolist()
+    for f in (flags, flags.astype(np.int8) * 3, np.repeat(flags, 2)[::2]):  # bool, int8, strided (the loop)
+        out = np.full(n + 32, -7, np.int64)
+        m = _append_where(f, n, out)
+        assert out[:m].tolist() == expected
