@@ -219,7 +219,7 @@ def _transitions(wts, link_ok, n):
     """Per code transition t = a * A + b: whether it can link two runs, the first channel of its edge signal
     (wts[a, b]), that channel's weight, whether more channels weigh in (one-shot), and the three packed into
     one int64 (ok | more << 1 | channel << 2) for the gathered link pass; then that pass's work rows for rows
-    of up to n runs (int64 (5, n) and float32 (3, n)). Built once per frame."""
+    of up to n runs (int64 (5, n), float32 (3, n), int64 (A * A,) and int8 (n,)). Built once per frame."""
     A = wts.shape[0]
     C = wts.shape[2]
     ok = np.zeros(A * A, np.bool_)
@@ -240,7 +240,8 @@ def _transitions(wts, link_ok, n):
                 if wts[a, b, c] != 0:
                     more[t] = True
             info[t] = np.int64(ok[t]) | (np.int64(more[t]) << 1) | (ch[t] << 2)
-    return ok, ch, w, more, info, np.empty((5, n), np.int64), np.empty((3, n), np.float32)
+    work = (np.empty((5, n), np.int64), np.empty((3, n), np.float32), np.empty(A * A, np.int64), np.empty(n, np.int8))
+    return ok, ch, w, more, info, work[0], work[1], work[2], work[3]
 
 
 def _link_pass(nr, fr, A, trans, gap_max, rs, re, rc, link, edge, slow):
@@ -257,17 +258,21 @@ def _link_pass_impl(nr, fr, A, trans, gap_max, rs, re, rc, link, edge, slow):
         def gathered(nr, fr, A, trans, gap_max, rs, re, rc, link, edge, slow):
             # gathers into work rows, then one loop over plain rows that the compiler vectorises (a table read
             # in the loop keeps it scalar); the same float operations as the loop below
-            t_w, info, iw, fw = trans[2], trans[4], trans[5], trans[6]
+            t_w, info, iw, fw, info_w, flag = trans[2], trans[4], trans[5], trans[6], trans[7], trans[8]
             W = fr.shape[1]
             n = nr - 1
-            tt, inf, a0, a1, flag = iw[0], iw[1], iw[2], iw[3], iw[4]
+            tt, inf, a0, a1 = iw[0], iw[1], iw[2], iw[3]
             wj, f0, f1 = fw[0], fw[1], fw[2]
+            # the channel's row offset in the flat differences packed in place of the channel (a multiply per
+            # run was the loop's costliest instruction)
+            for t in range(info.shape[0]):
+                info_w[t] = (info[t] & 3) | (((info[t] >> 2) * W) << 2)
             for j in range(n):
                 tt[j] = rc[j] * A + rc[j + 1]
-            _gather(inf, info, tt, n)
+            _gather(inf, info_w, tt, n)
             _gather(wj, t_w, tt, n)
             for j in range(n):
-                row = (inf[j] >> 2) * W
+                row = inf[j] >> 2
                 a0[j] = row + re[j]
                 a1[j] = row + rs[j + 1]
             flat = fr.reshape(fr.size)
@@ -281,11 +286,7 @@ def _link_pass_impl(nr, fr, A, trans, gap_max, rs, re, rc, link, edge, slow):
                 link[j] = lk
                 fast = (rs[j + 1] == re[j] + 1) & ((inf[j] & 2) == 0) & (s0 > 0) & (s1 <= 0)
                 flag[j] = lk & (not fast)
-            n_slow = 0
-            for j in range(n):
-                slow[n_slow] = j
-                n_slow += flag[j]
-            return n_slow
+            return _append_where(flag, n, slow)
 
         return gathered
 

@@ -32,6 +32,8 @@ _LLVM_NAME = {types.float32: "f32", types.float64: "f64", types.int32: "i32", ty
 _F32 = ir.FloatType()
 _I32 = ir.IntType(32)
 _I64 = ir.IntType(64)
+_I8 = ir.IntType(8)
+_PICK8 = ir.VectorType(_I32, 8)  # shuffle indices that pick 8 lanes
 _V = ir.VectorType(_F32, LANES)
 _VI = ir.VectorType(_I32, LANES)
 
@@ -60,6 +62,26 @@ def _masked_gather(builder: ir.IRBuilder, base: ir.Value, index: ir.Value, value
     )
     align = ir.Constant(_I32, int(name[1:]) // 8)
     return builder.call(fn, [gep, align, ir.Constant(vmask, [1] * lanes), ir.Constant(vval, ir.Undefined)])
+
+
+def _append(builder: ir.IRBuilder, values: ir.Value, mask: ir.Value, base: ir.Value, at: ir.Value) -> None:
+    """Store the lanes of 16 int64 values where mask is on, packed, at base[at:] (whole vectors are written: the
+    caller keeps room for 16 more values there). Compressed into registers eight lanes at a time, each stored
+    plainly: vpcompressq with a memory operand is several times slower on Intel, and LLVM splits a 16-lane
+    compress through an aligned stack slot that numba's frames do not align (a crash)."""
+    half = ir.VectorType(_I64, 8)
+    hmask = ir.VectorType(ir.IntType(1), 8)
+    compress = cgutils.get_or_insert_function(
+        builder.module, ir.FunctionType(half, [half, hmask, half]), "llvm.experimental.vector.compress.v8i64"
+    )
+    popcount = cgutils.get_or_insert_function(builder.module, ir.FunctionType(_I8, [_I8]), "llvm.ctpop.i8")
+    for h in range(2):
+        lanes = ir.Constant(_PICK8, list(range(8 * h, 8 * h + 8)))
+        v = builder.shuffle_vector(values, ir.Constant(values.type, ir.Undefined), lanes)
+        m = builder.shuffle_vector(mask, ir.Constant(mask.type, ir.Undefined), lanes)
+        packed = builder.call(compress, [v, m, ir.Constant(half, ir.Undefined)])
+        builder.store(packed, builder.bitcast(builder.gep(base, [at]), half.as_pointer()), align=8)
+        at = builder.add(at, builder.zext(builder.call(popcount, [builder.bitcast(m, _I8)]), _I64))
 
 
 def _c(t: types.Type, ndim: int, dtypes: tuple) -> bool:
@@ -223,7 +245,6 @@ def run_bounds16(typingctx, code, x, rs, re, rc, ns, ne):
     i8 = ir.IntType(8)
     v8 = ir.VectorType(i8, LANES)
     v64 = ir.VectorType(_I64, LANES)
-    vmask = ir.VectorType(ir.IntType(1), LANES)
 
     def codegen(context, builder, signature, args):
         kinds = signature.args
@@ -239,14 +260,9 @@ def run_bounds16(typingctx, code, x, rs, re, rc, ns, ne):
         start = builder.and_(coded, builder.icmp_signed("!=", cur, prev))
         end = builder.and_(coded, builder.icmp_signed("!=", cur, nxt))
         pos = builder.add(_splat(builder, xa, v64), ir.Constant(v64, list(range(LANES))))
-        store = cgutils.get_or_insert_function(
-            builder.module,
-            ir.FunctionType(ir.VoidType(), [v64, _I64.as_pointer(), vmask]),
-            f"llvm.masked.compressstore.v{LANES}i64",
-        )
-        builder.call(store, [pos, builder.gep(s.data, [n_s]), start])
-        builder.call(store, [builder.sext(cur, v64), builder.gep(k.data, [n_s]), start])
-        builder.call(store, [pos, builder.gep(e.data, [n_e]), end])
+        _append(builder, pos, start, s.data, n_s)
+        _append(builder, builder.sext(cur, v64), start, k.data, n_s)
+        _append(builder, pos, end, e.data, n_e)
         i16 = ir.IntType(LANES)
         popcount = cgutils.get_or_insert_function(builder.module, ir.FunctionType(i16, [i16]), f"llvm.ctpop.i{LANES}")
 
@@ -274,7 +290,6 @@ def append_where16(typingctx, flags, x, out, n):
     sig = types.int64(flags, x, out, n)
     v8 = ir.VectorType(ir.IntType(8), LANES)
     v64 = ir.VectorType(_I64, LANES)
-    vmask = ir.VectorType(ir.IntType(1), LANES)
 
     def codegen(context, builder, signature, args):
         kinds = signature.args
@@ -288,12 +303,7 @@ def append_where16(typingctx, flags, x, out, n):
         raw = builder.load(builder.bitcast(builder.gep(f.data, [xa]), v8.as_pointer()), align=1)
         keep = builder.icmp_unsigned("!=", raw, ir.Constant(v8, [0] * LANES))
         pos = builder.add(_splat(builder, xa, v64), ir.Constant(v64, list(range(LANES))))
-        store = cgutils.get_or_insert_function(
-            builder.module,
-            ir.FunctionType(ir.VoidType(), [v64, _I64.as_pointer(), vmask]),
-            f"llvm.masked.compressstore.v{LANES}i64",
-        )
-        builder.call(store, [pos, builder.gep(o.data, [na]), keep])
+        _append(builder, pos, keep, o.data, na)
         i16 = ir.IntType(LANES)
         popcount = cgutils.get_or_insert_function(builder.module, ir.FunctionType(i16, [i16]), f"llvm.ctpop.i{LANES}")
         return builder.add(na, builder.zext(builder.call(popcount, [builder.bitcast(keep, i16)]), _I64))
