@@ -39,6 +39,7 @@ from app.decode.simd import (
     append_where16_takes,
     differences16,
     differences16_takes,
+    fill8,
     gather8,
     gather8_takes,
     run_bounds16,
@@ -308,6 +309,28 @@ def _link_pass_impl(nr, fr, A, trans, gap_max, rs, re, rc, link, edge, slow):
         return n_slow
 
     return looped
+
+
+def _fill8(arr, i, value):
+    """arr[i:i + 8] = value, the caller keeping i >= 0 and room (compiled only: one vector store with simd.fill8
+    where it takes the array, else a loop)."""
+    raise NotImplementedError("numba only")
+
+
+@overload(_fill8, jit_options={"nogil": True, "error_model": "numpy", "_nrt": False})
+def _fill8_impl(arr, i, value):
+    if _c_array(arr) and arr.ndim == 1 and arr.dtype == types.int64:
+
+        def vector(arr, i, value):
+            fill8(arr, i, value)
+
+        return vector
+
+    def scalar(arr, i, value):
+        for t in range(8):
+            arr[i + t] = value
+
+    return scalar
 
 
 def _gather(dst, table, idx, n):
@@ -758,6 +781,40 @@ def _confirmed_labels(nr, pos, lab, k, period, cw):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
+def _segments(nx, nn, xa, nxp, first, seg_of):
+    """seg_of[q] = the segment of pixel xa + q (q < nxp) between the chain's nodes nx[:nn] (increasing): the one
+    after the last interior node left of it (the first segment extends left, the last right), i.e. the last
+    interior node r whose first pixel right of it, s_r, is <= the pixel (s never decreases). first: scratch
+    for nn values; seg_of needs room for nxp + 8."""
+    short = True
+    for r in range(1, nn - 1):
+        first[r] = min(max(int(np.floor(nx[r])) + 1 - xa, 0), nxp)
+    for r in range(1, nn - 2):
+        short &= first[r + 1] - first[r] <= 8
+    if short:
+        # segments of at most 8 pixels (all but freak chains): each node writes its index over the 8 pixels
+        # from its s_r, in order, so the next node overwrites the rest (a vector store per node; counting the
+        # nodes per pixel and a running sum cost a dependent read-modify-write per node and per pixel)
+        s1 = first[1] if nn > 2 else nxp
+        for q in range(s1):
+            seg_of[q] = 0
+        for r in range(1, nn - 1):
+            _fill8(seg_of, first[r], r)
+        if nn > 2:
+            for q in range(first[nn - 2] + 8, nxp):
+                seg_of[q] = nn - 2
+        return
+    for q in range(nxp + 1):
+        seg_of[q] = 0
+    for r in range(1, nn - 1):
+        seg_of[first[r]] += 1
+    seg = 0
+    for q in range(nxp):
+        seg += seg_of[q]
+        seg_of[q] = seg
+
+
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _label_row(
     y,
     nr,
@@ -937,21 +994,11 @@ def _label_row(
         # per-node slopes once per chain (sm is free after smoothing): no division per pixel
         for r in range(nn - 1):
             sm[r] = (nv[r + 1] - nv[r]) / (nx[r + 1] - nx[r])
-        # pixel xx takes the segment after the last interior node left of it (the first segment extends left,
-        # the last right): count the interior nodes at the first pixel right of each, then a running sum gives
-        # each pixel's segment; the segments' nodes and slopes are then gathered per pixel, so the loop that
-        # interpolates reads plain rows and is vectorised (a table read kept it scalar)
+        # each pixel's segment (see _segments); the segments' nodes and slopes are then gathered per pixel, so
+        # the loop that interpolates reads plain rows and is vectorised (a table read kept it scalar)
         nxp = xb - xa + 1
         seg_of = tl  # free once the windows are looked up
-        for q in range(nxp + 1):
-            seg_of[q] = 0
-        for r in range(1, nn - 1):
-            q = int(np.floor(nx[r])) + 1 - xa
-            seg_of[min(max(q, 0), nxp)] += 1
-        seg = 0
-        for q in range(nxp):
-            seg += seg_of[q]
-            seg_of[q] = seg
+        _segments(nx, nn, xa, nxp, pos, seg_of)  # (pos is free after the copy vote)
         gv = work[1]
         gx = work[2]
         gs = work[3]

@@ -309,3 +309,25 @@ def append_where16(typingctx, flags, x, out, n):
         return builder.add(na, builder.zext(builder.call(popcount, [builder.bitcast(keep, i16)]), _I64))
 
     return sig, codegen
+
+
+@intrinsic
+def fill8(typingctx, arr, i, value):
+    """arr[i:i + 8] = value as one vector store (LLVM leaves eight scalar stores of one value as they are): arr a
+    1-D C-contiguous int64 array, value an integer; the caller keeps 0 <= i and i + 8 <= len(arr)."""
+    if not (_c(arr, 1, (types.int64,)) and isinstance(i, types.Integer) and isinstance(value, types.Integer)):
+        return None
+    sig = types.void(arr, i, value)
+    v64 = ir.VectorType(_I64, 8)
+
+    def codegen(context, builder, signature, args):
+        kinds = signature.args
+        a = context.make_array(kinds[0])(context, builder, args[0])
+        at = context.cast(builder, args[1], kinds[1], types.int64)
+        val = context.cast(builder, args[2], kinds[2], types.int64)
+        v = builder.insert_element(ir.Constant(v64, ir.Undefined), val, ir.Constant(_I32, 0))
+        v = builder.shuffle_vector(v, ir.Constant(v64, ir.Undefined), ir.Constant(_PICK8, [0] * 8))
+        builder.store(v, builder.bitcast(builder.gep(a.data, [at]), v64.as_pointer()), align=8)
+        return context.get_dummy_value()
+
+    return sig, codegen

@@ -284,3 +284,20 @@ def test_compressed_positions_equal_flatnonzero(n):
         out = np.full(n + 32, -7, np.int64)
         m = _append_where(f, n, out)
         assert out[:m].tolist() == expected
+
+
+@pytest.mark.parametrize("spacing", [0.4, 2.2, 4.5, 7.9, 12.0])  # node spacings in pixels: short and long segments
+def test_pixel_segments_are_after_the_last_interior_node_left_of_each_pixel(spacing):
+    rng = np.random.default_rng(int(10 * spacing))
+    for trial in range(30):
+        nn = int(rng.integers(1, 40))
+        nx = np.sort(rng.uniform(-3, spacing * nn, nn)) + np.arange(nn) * 1e-6  # increasing
+        if trial % 5 == 0:
+            nx[nn // 2 :] += 20  # one long segment amid short ones
+        xa, xb = int(np.floor(nx[0])) + int(rng.integers(-1, 2)), int(np.ceil(nx[-1])) + int(rng.integers(-1, 2))
+        nxp = max(xb - xa + 1, 1)
+        seg_of = np.full(nxp + 16, -7, np.int64)
+        kernels._segments(nx, nn, xa, nxp, np.empty(nn + 1, np.int64), seg_of)
+        pixels = xa + np.arange(nxp)
+        expected = [max([r for r in range(1, nn - 1) if np.floor(nx[r]) + 1 <= x] or [0]) for x in pixels]
+        assert seg_of[:nxp].tolist() == expected
