@@ -314,20 +314,25 @@ def append_where16(typingctx, flags, x, out, n):
 @intrinsic
 def fill8(typingctx, arr, i, value):
     """arr[i:i + 8] = value as one vector store (LLVM leaves eight scalar stores of one value as they are): arr a
-    1-D C-contiguous int64 array, value an integer; the caller keeps 0 <= i and i + 8 <= len(arr)."""
-    if not (_c(arr, 1, (types.int64,)) and isinstance(i, types.Integer) and isinstance(value, types.Integer)):
+    1-D C-contiguous int64 or float32 array, value of its kind (an integer or a float); the caller keeps
+    0 <= i and i + 8 <= len(arr)."""
+    if not (
+        _c(arr, 1, (types.int64, types.float32))
+        and isinstance(i, types.Integer)
+        and isinstance(value, types.Integer if arr.dtype == types.int64 else types.Float)
+    ):
         return None
     sig = types.void(arr, i, value)
-    v64 = ir.VectorType(_I64, 8)
 
     def codegen(context, builder, signature, args):
         kinds = signature.args
         a = context.make_array(kinds[0])(context, builder, args[0])
         at = context.cast(builder, args[1], kinds[1], types.int64)
-        val = context.cast(builder, args[2], kinds[2], types.int64)
-        v = builder.insert_element(ir.Constant(v64, ir.Undefined), val, ir.Constant(_I32, 0))
-        v = builder.shuffle_vector(v, ir.Constant(v64, ir.Undefined), ir.Constant(_PICK8, [0] * 8))
-        builder.store(v, builder.bitcast(builder.gep(a.data, [at]), v64.as_pointer()), align=8)
+        val = context.cast(builder, args[2], kinds[2], kinds[0].dtype)
+        vec = ir.VectorType(context.get_value_type(kinds[0].dtype), 8)
+        v = builder.insert_element(ir.Constant(vec, ir.Undefined), val, ir.Constant(_I32, 0))
+        v = builder.shuffle_vector(v, ir.Constant(vec, ir.Undefined), ir.Constant(_PICK8, [0] * 8))
+        builder.store(v, builder.bitcast(builder.gep(a.data, [at]), vec.as_pointer()), align=4)
         return context.get_dummy_value()
 
     return sig, codegen

@@ -301,3 +301,15 @@ def test_pixel_segments_are_after_the_last_interior_node_left_of_each_pixel(spac
         pixels = xa + np.arange(nxp)
         expected = [max([r for r in range(1, nn - 1) if np.floor(nx[r]) + 1 <= x] or [0]) for x in pixels]
         assert seg_of[:nxp].tolist() == expected
+
+
+@njit(cache=False)
+def _fill8(arr, i, value):
+    kernels._fill8(arr, i, value)
+
+
+@pytest.mark.parametrize("dtype", [np.int64, np.float32])
+def test_fill8_writes_eight_values_and_nothing_else(dtype):
+    for arr in (np.zeros(20, dtype), np.zeros(40, dtype)[::2]):  # one vector store; strided: the loop
+        _fill8(arr, 5, dtype(3))
+        assert arr.tolist() == [0] * 5 + [3] * 8 + [0] * 7
