@@ -891,16 +891,24 @@ def _label_row(
         base = lab[i0]
         # the nodes (stripe edges or centres) in plain vectorised loops; they must increase, and the rare chain
         # where they do not is made increasing by the sequential pass (a dependency from node to node)
+        # (the chain's runs as views from i0: an index i0 + q of unknown sign gets numba's negative-index fix
+        # per element, which made these loads gathers; the values are small multiples of 0.5, so the float sums
+        # equal the integer products exactly)
         if edges_mode:
             nn = i1 - i0
+            e_c = edge[i0:]
+            v0 = (base + 1) * sw - 0.5
             for q in range(nn):
-                nx[q] = edge[i0 + q]
-                nv[q] = (base + q + 1) * sw - 0.5
+                nx[q] = e_c[q]
+                nv[q] = v0 + q * sw
         else:
             nn = i1 - i0 + 1
+            rs_c = rs[i0:]
+            re_c = re[i0:]
+            v0 = base * sw + 0.5 * (sw - 1)
             for q in range(nn):
-                nx[q] = 0.5 * (rs[i0 + q] + re[i0 + q])
-                nv[q] = (base + q) * sw + 0.5 * (sw - 1)
+                nx[q] = 0.5 * (rs_c[q] + re_c[q])
+                nv[q] = v0 + q * sw
         _increasing(nx, nx, nn)
         if smooth > 0 and nn > 2 * smooth:
             # noise in single edge positions averages out over a few neighbouring edges: replace each
@@ -1602,7 +1610,8 @@ def _row_votes(col, chain, y, tol, agree, disagree, npx, first, span):
     for c in range(first[y - 1], first[y]):
         ag = 0
         dg = 0
-        for x in range(span[c, 0], span[c, 1] + 1):
+        for xi in range(span[c, 0], span[c, 1] + 1):
+            x = np.uint64(xi)  # unsigned: numba adds no negative-index fix per pixel (it made the loads gathers)
             pair = (chain[y - 1, x] == c) & (chain[y, x] >= 0)
             close = abs(col[y - 1, x] - col[y, x]) <= tol32
             ag += pair & close
