@@ -1674,3 +1674,18 @@ def _finish_row(
                 col_e[y, x] = np.nan
                 chain_e[y, x] = -1
             conf[y, x] = 0.0
+
+
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
+def average_frames(a, b, out):
+    """out = (a + b) // 2 element by element without overflow, for unsigned integer frames of one shape and
+    dtype (the two-shot pair's texture): (a >> 1) + (b >> 1) + (a & b & 1) in one vectorised pass (numpy
+    widened to uint32, added, divided and narrowed: four passes, ~1 ms for a 640x480 pair)."""
+    fa = a.reshape(a.size)
+    fb = b.reshape(b.size)
+    fo = out.reshape(out.size)
+    one = a.dtype.type(1)
+    for i in range(fa.size):
+        x = fa[i]
+        y = fb[i]
+        fo[i] = (x >> one) + (y >> one) + (x & y & one)

@@ -9,6 +9,7 @@ import numpy as np
 
 from app.decode.colour import camera_gamma_of
 from app.decode.graycode import GrayCodeDecoder
+from app.decode.kernels import average_frames
 from app.decode.oneshot import OneShotDecoder
 from app.decode.stripemap import StripeMap
 from app.decode.twoshot import SEGMENTATIONS, TwoShotDecoder, TwoShotParams
@@ -91,7 +92,7 @@ class FrameSetDecoder:
         self.check_frames(frames, where)
         if self.scheme == "two-shot":
             sm = self.decoder.decode(frames[0], frames[1])
-            texture = ((frames[0].astype(np.uint32) + frames[1]) // 2).astype(frames[0].dtype)
+            texture = average_frames_of(frames[0], frames[1])
         elif self.scheme == "one-shot":
             sm = self.decoder.decode(frames[0])
             texture = frames[0]
@@ -109,3 +110,13 @@ class FrameSetDecoder:
             depth = self.triangulator.depth(sm.column)
             cloud = self.triangulator.points(depth, texture)
         return Result(sm, depth, cloud, texture)
+
+
+def average_frames_of(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(a + b) // 2 of two frames of one shape and unsigned integer dtype, without overflow (one compiled pass)."""
+    out = np.empty_like(a)
+    if a.flags.c_contiguous and b.flags.c_contiguous and a.dtype == b.dtype and a.dtype.kind == "u":
+        average_frames(a, b, out)
+    else:
+        out[...] = ((a.astype(np.uint32) + b) // 2).astype(a.dtype)
+    return out

@@ -313,3 +313,16 @@ def test_fill8_writes_eight_values_and_nothing_else(dtype):
     for arr in (np.zeros(20, dtype), np.zeros(40, dtype)[::2]):  # one vector store; strided: the loop
         _fill8(arr, 5, dtype(3))
         assert arr.tolist() == [0] * 5 + [3] * 8 + [0] * 7
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
+def test_pair_texture_is_the_floor_average_without_overflow(dtype):
+    from app.decode.pipeline import average_frames_of
+
+    rng = np.random.default_rng(7)
+    top = np.iinfo(dtype).max
+    a, b = (rng.integers(0, top + 1, (5, 7, 3)).astype(dtype) for _ in range(2))
+    a[0, 0], b[0, 0] = top, top  # the sum overflows the dtype
+    expected = ((a.astype(np.uint32) + b) // 2).astype(dtype)
+    assert np.array_equal(average_frames_of(a, b), expected)  # compiled pass
+    assert np.array_equal(average_frames_of(a[:, ::-1], b[:, ::-1]), expected[:, ::-1])  # views: numpy
