@@ -319,7 +319,8 @@ def _fill8(arr, i, value):
 
 @overload(_fill8, jit_options={"nogil": True, "error_model": "numpy", "_nrt": False})
 def _fill8_impl(arr, i, value):
-    if _c_array(arr) and arr.ndim == 1 and arr.dtype in (types.int64, types.float32):
+    kind = types.Integer if arr.dtype == types.int64 else types.Float
+    if _c_array(arr) and arr.ndim == 1 and arr.dtype in (types.int64, types.float32) and isinstance(value, kind):
 
         def vector(arr, i, value):
             fill8(arr, i, value)
@@ -859,10 +860,12 @@ def _label_row(
     span[c] = (first, last) pixel chain c may write (when span has room for it: the fused path's vote counts
     walk these spans instead of whole rows). When npx has room for chain c, its pixels are counted into npx[c]
     and, against row y - 1 (labelled, not yet checked), its vertical votes within tol into agree[c] and
-    disagree[c] as _row_votes would, while the columns are written (chains of a row do not overlap).
+    disagree[c] as _row_votes would, while the columns are written (a pixel two chains share is counted for the
+    later one, which writes it last).
     work (4, n): row 0 the smoothed nodes, then the slopes; rows 1-2 the copy vote's range ends, rows 1-3 the
     column write's gathered node values. marks (3, n) int8 and bounds (2, n) int64: the chains' ends."""
     W = out_col.shape[1]
+    row_first = n_chains  # this row's first chain
     if nr < k:
         return n_chains
     sm = work[0]
@@ -1018,6 +1021,16 @@ def _label_row(
             up = max(y - 1, 0)
             above = y > 0
             tol32 = np.float32(tol)
+            # the zero-crossing runs of neighbouring stripes share a pixel when the crossing falls exactly on
+            # it, so the row's previous chain may own this chain's first pixel: if this chain takes it, that
+            # pixel's count and vote move here (as counting the finished row would have it)
+            shared = -1
+            shared_col = np.float32(0.0)
+            if n_chains > row_first and n_chains - 1 < span.shape[0]:
+                pe = span[n_chains - 1, 1]
+                if pe >= xa and out_chain[y, pe] == n_chains - 1:
+                    shared = pe
+                    shared_col = out_col[y, pe]
             n = 0
             ag = 0
             dg = 0
@@ -1040,6 +1053,13 @@ def _label_row(
             npx[n_chains] = n
             agree[n_chains] = ag
             disagree[n_chains] = dg
+            if shared >= 0 and out_chain[y, shared] == n_chains:
+                npx[n_chains - 1] -= 1
+                if above and out_chain[up, shared] >= 0:
+                    if abs(out_col[up, shared] - shared_col) <= tol32:
+                        agree[n_chains - 1] -= 1
+                    else:
+                        disagree[n_chains - 1] -= 1
         else:
             for q in range(nxp):
                 xx = xa + q
@@ -1556,7 +1576,7 @@ def twoshot_rows(
             )  # fmt: skip
         first_e[y + 1] = n_e
         first_r[y + 1] = n_r
-        if check or mode == 2:  # (_finish_row reads the pixel counts even without the check)
+        if check:  # (the pixel counts _finish_row reads come from _label_row)
             _row_votes(col_e, chain_e, y, tol, agree_e, dis_e, npx_e, first_e, span_e)
             if mode == 2:
                 _row_votes(col_r, chain_r, y, tol, agree_r, dis_r, npx_r, first_r, span_r)

@@ -115,7 +115,8 @@ class FrameSetDecoder:
 def average_frames_of(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(a + b) // 2 of two frames of one shape and unsigned integer dtype, without overflow (one compiled pass)."""
     out = np.empty_like(a)
-    if a.flags.c_contiguous and b.flags.c_contiguous and a.dtype == b.dtype and a.dtype.kind == "u":
+    same = a.shape == b.shape and a.dtype == b.dtype
+    if same and a.flags.c_contiguous and b.flags.c_contiguous and a.dtype.kind == "u":
         average_frames(a, b, out)
     else:
         out[...] = ((a.astype(np.uint32) + b) // 2).astype(a.dtype)

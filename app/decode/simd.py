@@ -8,11 +8,12 @@ frames, splits the channels with shuffles and reads each pixel's 12 table values
 with the same float32 operations in the same order as the scalar loop, so the results are bit-identical.
 `gather8` is the general form (8 values into a plain row), after which the compiler vectorises the
 arithmetic itself. `run_bounds16` appends a row's run starts and ends, and `append_where16` the positions of
-nonzero flags, with `llvm.masked.compressstore` (a loop that appends carries its count from element to element
-and is never vectorised). On AVX-512 these are gather and
-compress instructions (the speed-ups in the README were measured there); elsewhere LLVM expands them into
-scalar code: the same results (the tests pass built for a generic x86-64 and for AVX2), at a speed not
-measured here.
+nonzero flags, by compressing vectors (`llvm.experimental.vector.compress`) and storing them whole (a loop
+that appends carries its count from element to element and is never vectorised); `fill8` stores one value
+eight times as one vector. On AVX-512 these are gather and compress instructions (the speed-ups in the README
+were measured there); elsewhere LLVM expands them into scalar code: the same results (the tests pass built
+for a generic x86-64, and for AVX2 with `NUMBA_CPU_NAME=haswell` and `NUMBA_CPU_FEATURES` set to Haswell's
+features: the CPU name alone keeps the host's AVX-512), at a speed not measured here.
 
 The calls are written in LLVM's four-argument form (pointers, alignment, mask, pass-through); LLVM 22 drops the
 alignment operand and upgrades such calls itself. numba's on-disk cache of `kernels.py` does not notice edits
@@ -235,8 +236,8 @@ def run_bounds16(typingctx, code, x, rs, re, rc, ns, ne):
     """The run bounds among pixels x .. x + 15 of a row of int8 codes (runs of one code >= 0; -1 is no code):
     each pixel that starts a run (its code differs from the pixel before) appends its position to rs[ns:] and
     its code to rc[ns:], each that ends one (differs from the pixel after) its position to re[ne:], with
-    `llvm.masked.compressstore` (vpcompressq on AVX-512: a scalar loop appends with a dependency from pixel to
-    pixel). Returns the advanced (ns, ne). code is 1-D C-contiguous int8, rs/re/rc 1-D C-contiguous int64; the
+    compressed vectors (see _append; a scalar loop appends with a dependency from pixel to pixel). Returns the
+    advanced (ns, ne). code is 1-D C-contiguous int8, rs/re/rc 1-D C-contiguous int64; the
     caller keeps 1 <= x and x + 17 <= len(code) (the neighbours are read) and room for 16 more entries."""
     if not (run_bounds16_takes(code, rs, re, rc) and all(isinstance(t, types.Integer) for t in (x, ns, ne))):
         return None
@@ -283,7 +284,7 @@ def append_where16_takes(flags: types.Type, out: types.Type) -> bool:
 @intrinsic
 def append_where16(typingctx, flags, x, out, n):
     """Append to out[n:] the positions x + l (l < 16) where flags[x + l] is nonzero, with
-    `llvm.masked.compressstore`; returns the new n. flags is 1-D C-contiguous int8/uint8/bool, out 1-D
+    compressed vectors (see _append); returns the new n. flags is 1-D C-contiguous int8/uint8/bool, out 1-D
     C-contiguous int64; the caller keeps x + 16 <= len(flags) and room for 16 more entries in out."""
     if not (append_where16_takes(flags, out) and isinstance(x, types.Integer) and isinstance(n, types.Integer)):
         return None

@@ -326,3 +326,37 @@ def test_pair_texture_is_the_floor_average_without_overflow(dtype):
     expected = ((a.astype(np.uint32) + b) // 2).astype(dtype)
     assert np.array_equal(average_frames_of(a, b), expected)  # compiled pass
     assert np.array_equal(average_frames_of(a[:, ::-1], b[:, ::-1]), expected[:, ::-1])  # views: numpy
+
+
+@pytest.mark.parametrize("edges_mode", [False, True])
+def test_vote_counts_written_with_the_columns_equal_counts_of_the_finished_rows(edges_mode):
+    """Two chains whose end runs share a pixel (a zero crossing exactly on a pixel): the later chain owns it,
+    and the counts made while writing must say so, as counting the finished rows does."""
+    W, k, A, period, sw, nr, cap = 60, 7, 4, 64, 8.0, 16, 10
+    n = 3 * (2 * W + 8)
+    rs, re, rc, link, edge, _, _, tl, pos, lab, nx, nv, sm, marks, bounds, votes = kernels._row_scratch(n, W, 1)
+    codes = np.random.default_rng(0).integers(0, A, nr)
+    for i in range(nr):  # runs of 4 pixels, each sharing its last pixel with the next run
+        rs[i], re[i], rc[i], link[i], edge[i] = 3 * i + 1, 3 * i + 4, codes[i], i + 1 < nr, 3 * i + 4.0
+    table = np.full(A**k, -1, np.int32)
+    for j, p in ((0, 10), (1, 11), (8, 40), (9, 41)):  # chain A: runs 0-7, chain B: runs 8-15
+        table[sum(int(codes[j + t]) << (2 * t) for t in range(k))] = p
+    col = np.full((2, W), np.nan, np.float32)
+    chain = np.full((2, W), -1, np.int32)
+    agree, disagree, npx = (np.zeros(cap, np.int32) for _ in range(3))
+    span = np.zeros((cap, 2), np.int32)
+    lo = np.zeros((2, W), np.float32)
+    nc = 0
+    for y in range(2):  # row 1 is row 0 again: every pixel pair agrees
+        nc = kernels._label_row(
+            y, nr, rs, re, rc, link, edge, tl, pos, lab, nx, nv, table, A, k, period, sw, 1, 1000, lo, lo, False,
+            edges_mode, 0.5, 0, sm, marks, bounds, votes, col, chain, nc, span, 1.0, agree, disagree, npx,
+        )  # fmt: skip
+    assert nc == 4 and span[0, 1] == span[1, 0]  # the shared pixel
+    for c in range(nc):
+        y = c // 2
+        mine = chain[y] == c
+        assert npx[c] == mine.sum()
+        if y == 1:  # votes against row 0, by the row's final owners
+            pair = mine & (chain[0] >= 0)
+            assert agree[c] == (pair & (np.abs(col[0] - col[1]) <= 1.0)).sum() and disagree[c] == 0
