@@ -1226,7 +1226,7 @@ def vertical_check(out_col, out_chain, n_chains, tol, min_support):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
-def _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, want_thr, code):
+def _classify_row(f1, f2, y, lin, dlin, pk, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, want_thr, code):
     """twoshot_classify for row y of the frames: codes into code (W,), the unmixed differences into
     tmp[0:m] and, with want_thr, the zero-crossing sign thresholds into tmp[m:2m] (tmp is (2m + 2, W); the
     last two rows are scratch).
@@ -1248,7 +1248,7 @@ def _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, 
     fv1 = tmp[1]
     nz0 = tmp[2]
     nz1 = tmp[3]
-    _differences(f1, f2, y, lin, dlin, unmix, ta, tmp)
+    _differences(f1, f2, y, lin, dlin, pk, unmix, ta, tmp)
     # block maxima of |d| at bmax[c, 1 + b], with zero guards at both ends
     bm0 = bmax[0]
     bm1 = bmax[1]
@@ -1324,17 +1324,17 @@ def _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, 
                 nz1[x] = max(te1, nz1[x])
 
 
-def _differences(f1, f2, y, lin, dlin, unmix, ta, tmp):
+def _differences(f1, f2, y, lin, dlin, pk, unmix, ta, tmp):
     """Row y's unmixed differences and noise floors of the two pattern channels into tmp[0:4] (compiled only:
     the overload below picks the gathers of simd.differences16 for C-contiguous frames and tables, else the loop)."""
     raise NotImplementedError("numba only")
 
 
 @overload(_differences, jit_options={"nogil": True, "error_model": "numpy", "_nrt": False})
-def _differences_impl(f1, f2, y, lin, dlin, unmix, ta, tmp):
-    if f1 == f2 and differences16_takes(f1, lin, dlin, unmix, ta, tmp):
+def _differences_impl(f1, f2, y, lin, dlin, pk, unmix, ta, tmp):
+    if f1 == f2 and differences16_takes(f1, lin, dlin, unmix, ta, tmp) and _c_array(pk) and pk.dtype == types.int64:
 
-        def vector(f1, f2, y, lin, dlin, unmix, ta, tmp):
+        def vector(f1, f2, y, lin, dlin, pk, unmix, ta, tmp):
             if f1.shape[2] != 3 or lin.shape[0] != 3 or dlin.shape[0] != 3:
                 _differences_loop(f1, f2, y, lin, dlin, unmix, ta, tmp)
                 return
@@ -1346,6 +1346,10 @@ def _differences_impl(f1, f2, y, lin, dlin, unmix, ta, tmp):
             u00, u01, u02 = unmix[0, 0], unmix[0, 1], unmix[0, 2]
             u10, u11, u12 = unmix[1, 0], unmix[1, 1], unmix[1, 2]
             x = 0
+            if pk.shape[0] == lin.size:  # the tables packed in pairs (pack_tables): half the gathered elements
+                while x + LANES <= W:
+                    differences16(a, b, pk, pk, u00, u01, u02, u10, u11, u12, ta, tmp, x)
+                    x += LANES
             while x + LANES <= W:
                 differences16(a, b, lf, df, u00, u01, u02, u10, u11, u12, ta, tmp, x)
                 x += LANES
@@ -1356,7 +1360,7 @@ def _differences_impl(f1, f2, y, lin, dlin, unmix, ta, tmp):
 
         return vector
 
-    def scalar(f1, f2, y, lin, dlin, unmix, ta, tmp):
+    def scalar(f1, f2, y, lin, dlin, pk, unmix, ta, tmp):
         _differences_loop(f1, f2, y, lin, dlin, unmix, ta, tmp)
 
     return scalar
@@ -1468,6 +1472,27 @@ def _classify_row_any(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, blo
             cur = nxt
 
 
+PACK_LEVELS = 4096  # tables of up to this many levels per channel are packed per frame (8-bit: 256)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def pack_tables(lin, dlin):
+    """The linearisation and noise-slope tables (3, levels) float32 as one int64 table whose entry i holds the
+    float32 pair (lin, dlin) of flat entry i (the gathered differences read both with one 8-byte gather); an
+    empty table for more than PACK_LEVELS levels (16-bit frames: packing 3 x 65536 entries per frame would
+    cost more than it saves)."""
+    if lin.shape[1] > PACK_LEVELS or lin.shape != dlin.shape:
+        return np.empty(0, np.int64)
+    C, levels = lin.shape
+    pk = np.empty(C * levels, np.int64)
+    pairs = pk.view(np.float32)
+    for c in range(C):
+        for v in range(levels):
+            pairs[2 * (c * levels + v)] = lin[c, v]
+            pairs[2 * (c * levels + v) + 1] = dlin[c, v]
+    return pk
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def twoshot_rows(
     f1,
@@ -1526,6 +1551,7 @@ def twoshot_rows(
     fr = tmp[:m]
     tr = tmp[m:]
     code = np.empty(W, np.int8)
+    pk = pack_tables(lin, dlin)
     n = (m + 1) * (2 * W + 8)
     rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, marks, bounds, votes = _row_scratch(n, W, n_copies)
     ex = np.empty((m, n), np.float64)
@@ -1557,7 +1583,7 @@ def twoshot_rows(
         if mode == 2:
             col_r[y] = np.nan
             chain_r[y] = -1
-        _classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, mode != 1, code)
+        _classify_row(f1, f2, y, lin, dlin, pk, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, mode != 1, code)
         if mode == 1:
             nr = _pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge)
         else:

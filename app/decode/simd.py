@@ -118,15 +118,18 @@ def gather8_takes(dst: types.Type, table: types.Type, idx: types.Type) -> bool:
 @intrinsic
 def differences16(typingctx, a, b, lin, dlin, u00, u01, u02, u10, u11, u12, ta, out, x):
     """Pixels x .. x + 15 of _row_differences: a, b the two frames' rows (W, 3) uint8/uint16, C-contiguous;
-    lin, dlin (3 * levels,) float32, the channels' tables one after the other; u the two unmixing rows and
-    ta the half noise floor, float32; out (>= 4, W) float32 C-contiguous receives the differences d0, d1 and
-    the noise floors n0, n1 in its first four rows. The caller keeps x + 16 <= W."""
+    lin, dlin (3 * levels,) float32, the channels' tables one after the other, or lin int64 (3 * levels,): both
+    tables packed, each entry the float32 pair (lin, dlin) (see pack_tables; dlin is then not read): one 8-byte
+    gather per frame and channel instead of two 4-byte ones, half the gathered elements; u the two unmixing
+    rows and ta the half noise floor, float32; out (>= 4, W) float32 C-contiguous receives the differences d0,
+    d1 and the noise floors n0, n1 in its first four rows. The caller keeps x + 16 <= W."""
     coefs = (u00, u01, u02, u10, u11, u12, ta)
+    packed = _c(lin, 1, (types.int64,))
     if not (
         _c(a, 2, (types.uint8, types.uint16))
         and b == a
-        and _c(lin, 1, (types.float32,))
-        and _c(dlin, 1, (types.float32,))
+        and (packed or _c(lin, 1, (types.float32,)))
+        and _c(dlin, 1, (types.float32, types.int64))
         and all(c == types.float32 for c in coefs)
         and _c(out, 2, (types.float32,))
         and isinstance(x, types.Integer)
@@ -155,10 +158,21 @@ def differences16(typingctx, a, b, lin, dlin, u00, u01, u02, u10, u11, u12, ta, 
         levels = builder.trunc(builder.udiv(builder.extract_value(arr[2].shape, 0), ir.Constant(_I64, 3)), _I32)
         e = []
         n = []
+        evens = ir.Constant(_VI, list(range(0, 2 * LANES, 2)))
+        odds = ir.Constant(_VI, list(range(1, 2 * LANES, 2)))
+        v32 = ir.VectorType(_F32, 2 * LANES)
         for c in range(3):
             off = _splat(builder, builder.mul(levels, ir.Constant(_I32, c)), _VI)
             ia = builder.add(chans[0][c], off)
             ib = builder.add(chans[1][c], off)
+            if packed:
+                # each gathered int64 is the pair (lin, dlin): the low half (even float lane) lin, the high dlin
+                pairs = [builder.bitcast(_masked_gather(builder, plin, i, _I64, "i64"), v32) for i in (ia, ib)]
+                la, lb = (builder.shuffle_vector(q, ir.Constant(v32, ir.Undefined), evens) for q in pairs)
+                da, db = (builder.shuffle_vector(q, ir.Constant(v32, ir.Undefined), odds) for q in pairs)
+                e.append(builder.fsub(lb, la))
+                n.append(builder.fadd(db, da))
+                continue
             e.append(
                 builder.fsub(
                     _masked_gather(builder, plin, ib, _F32, "f32"), _masked_gather(builder, plin, ia, _F32, "f32")

@@ -12,11 +12,18 @@ from app.decode.simd import gather8
 from app.decode.twoshot import TwoShotDecoder, two_shot_spec
 from app.patterns import two_shot_patterns
 
+UNPACKED = np.empty(0, np.int64)  # no packed tables: the two-gather path
+
 
 @njit(cache=False)
-def _dispatched(f1, f2, lin, dlin, unmix, ta, out):
+def _dispatched(f1, f2, lin, dlin, unmix, ta, out, pk=UNPACKED):
     for y in range(f1.shape[0]):
-        kernels._differences(f1, f2, y, lin, dlin, unmix, ta, out[y])
+        kernels._differences(f1, f2, y, lin, dlin, pk, unmix, ta, out[y])
+
+
+def _packed(lin, dlin):
+    """The (lin, dlin) pairs as int64 entries, by numpy (what pack_tables builds, for any number of levels)."""
+    return np.stack([lin, dlin], axis=-1).reshape(-1).view(np.int64)
 
 
 @njit(cache=False)
@@ -29,9 +36,10 @@ def _scalar(f1, f2, lin, dlin, u, ta, out):
         )  # fmt: skip
 
 
+@pytest.mark.parametrize("packed", [False, True])
 @pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
 @pytest.mark.parametrize("width", [5, 16, 17, 47, 640])
-def test_gathered_differences_equal_the_scalar_loop(dtype, width):
+def test_gathered_differences_equal_the_scalar_loop(dtype, width, packed):
     rng = np.random.default_rng(width)
     levels = np.iinfo(dtype).max + 1
     f1 = rng.integers(0, levels, (3, width, 3)).astype(dtype)
@@ -44,7 +52,7 @@ def test_gathered_differences_equal_the_scalar_loop(dtype, width):
     ta = np.float32(1.0)
     got = np.full((3, 6, width), np.nan, np.float32)
     want = np.full((3, 6, width), np.nan, np.float32)
-    _dispatched(f1, f2, lin, dlin, unmix, ta, got)
+    _dispatched(f1, f2, lin, dlin, unmix, ta, got, _packed(lin, dlin) if packed else UNPACKED)
     _scalar(f1, f2, lin, dlin, unmix, ta, want)
     np.testing.assert_array_equal(got[:, :4], want[:, :4])
     assert np.isnan(got[:, 4:]).all()  # rows past the fourth are left alone
@@ -141,7 +149,8 @@ def _fused_codes(f1, f2, lin, dlin, unmix, t_abs, t_rel, block, code):
     bmax = np.empty((m, nb + 2), np.float32)
     tmp = np.empty((2 * m + 2, W), np.float32)
     for y in range(f1.shape[0]):
-        kernels._classify_row(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel, block, bmax, tmp, False, code[y])
+        pk = kernels.pack_tables(lin, dlin)
+        kernels._classify_row(f1, f2, y, lin, dlin, pk, unmix, t_abs, t_rel, t_rel, block, bmax, tmp, False, code[y])
 
 
 @pytest.mark.parametrize("channels", [2, 3])  # 3: _classify_row_any, the path for other channel counts
@@ -360,3 +369,11 @@ def test_vote_counts_written_with_the_columns_equal_counts_of_the_finished_rows(
         if y == 1:  # votes against row 0, by the row's final owners
             pair = mine & (chain[0] >= 0)
             assert agree[c] == (pair & (np.abs(col[0] - col[1]) <= 1.0)).sum() and disagree[c] == 0
+
+
+def test_tables_are_packed_for_8_bit_frames_only():
+    rng = np.random.default_rng(3)
+    lin, dlin = rng.random((2, 3, 256)).astype(np.float32)
+    assert np.array_equal(kernels.pack_tables(lin, dlin), _packed(lin, dlin))
+    big = np.zeros((3, 65536), np.float32)
+    assert kernels.pack_tables(big, big).size == 0  # 16-bit tables: the two gathers
