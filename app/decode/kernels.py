@@ -586,21 +586,24 @@ def _event_runs2(ex, es, et, n0, n1, rs, re, rc, link, edge, left, right):
     return nr
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _event_runs(fr, tr, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right):
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
+def _event_runs(fr, tr, gap_max, ex, es, et, cnt, ps, rs, re, rc, link, edge, left, right):
     """Two-shot stripes of a row from the zero crossings of each channel's difference (fr, tr: (C, W)).
 
     A stripe is the interval between two consecutive sign changes (of any channel) while every
     channel has a sign, so a stripe narrower than a camera pixel is still seen as long as the
-    crossings around it are.
+    crossings around it are. cnt (C,) and ps (2, C) int64 are scratch.
     """
     m = fr.shape[0]
     for c in range(m):
         cnt[c] = _sign_events(fr, tr, c, gap_max, ex[c], es[c], et[c])
     if m == 2:
         return _event_runs2(ex, es, et, cnt[0], cnt[1], rs, re, rc, link, edge, left, right)
-    ptr = np.zeros(3, np.int64)
-    sign = np.zeros(3, np.int64)
+    ptr = ps[0]
+    sign = ps[1]
+    for c in range(m):
+        ptr[c] = 0
+        sign[c] = 0
     nr = 0
     active = False
     while True:
@@ -1119,13 +1122,14 @@ def label_rows(
     es = np.empty((m, n), np.int64)
     et = np.empty((m, n), np.int64)
     cnt = np.zeros(m, np.int64)
+    ps = np.zeros((2, m), np.int64)
     no_span = np.empty((0, 2), np.int32)
     no_count = np.empty(0, np.int32)
     n_chains = 0
     trans = _transitions(wts, link_ok, n)
     for y in range(H):
         if events:
-            nr = _event_runs(feat[y].T, noise[y].T, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right)
+            nr = _event_runs(feat[y].T, noise[y].T, gap_max, ex, es, et, cnt, ps, rs, re, rc, link, edge, left, right)
         else:
             nr = _pixel_runs(code[y], feat[y].T, wts, trans, gap_max, rs, re, rc, link, edge)
         n_chains = _label_row(
@@ -1548,8 +1552,6 @@ def twoshot_rows(
     bmax = np.empty((m, nb + 2), np.float32)
     # the row's differences (0..m-1), sign thresholds (m..2m-1) and _classify_row's scratch
     tmp = np.empty((2 * m + 2, W), np.float32)
-    fr = tmp[:m]
-    tr = tmp[m:]
     code = np.empty(W, np.int8)
     pk = pack_tables(lin, dlin)
     n = (m + 1) * (2 * W + 8)
@@ -1558,6 +1560,7 @@ def twoshot_rows(
     es = np.empty((m, n), np.int64)
     et = np.empty((m, n), np.int64)
     cnt = np.zeros(m, np.int64)
+    ps = np.zeros((2, m), np.int64)
     cap = H * (n // k + 2)  # at most this many chains: each holds k runs of a row
     # per-chain counts and spans, each written before it is read (_label_row, _row_votes): no zeroing
     agree_e = np.empty(cap, np.int32)
@@ -1573,9 +1576,36 @@ def twoshot_rows(
     first_r = np.zeros(H + 1, np.int64)
     check = tol > 0
     trans = _transitions(wts, link_ok, n)
+    stats = np.zeros(4, np.int64)  # dropped events, dropped runs, filled, clashes
+    n_e, n_r = _rows(
+        f1, f2, lin, dlin, pk, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, code, mode, wts, trans, gap_max,
+        (rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, marks, bounds, votes), (ex, es, et, cnt, ps),
+        table, A, k, period, sw, n_copies, proj_w, lo, hi, use_range, edges_mode, min_frac, smooth,
+        (col_e, chain_e, col_r, chain_r, conf), (agree_e, dis_e, npx_e, span_e, first_e),
+        (agree_r, dis_r, npx_r, span_r, first_r), tol, check, min_support, cap, stats,
+    )  # fmt: skip
+    return n_e, n_r, stats[0], stats[1], stats[2], stats[3]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
+def _rows(
+    f1, f2, lin, dlin, pk, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, code, mode, wts, trans, gap_max,
+    scratch, events, table, A, k, period, sw, n_copies, proj_w, lo, hi, use_range, edges_mode, min_frac, smooth,
+    maps, counts_e, counts_r, tol, check, min_support, cap, stats,
+):  # fmt: skip
+    """twoshot_rows' loop over the rows, in a kernel of its own without reference counting (the row views and
+    calls of a reference-counted loop cost ~3 % of the decoder in atomic runtime calls). Returns (n_e, n_r)."""
+    rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, marks, bounds, votes = scratch
+    ex, es, et, cnt, ps = events
+    col_e, chain_e, col_r, chain_r, conf = maps
+    agree_e, dis_e, npx_e, span_e, first_e = counts_e
+    agree_r, dis_r, npx_r, span_r, first_r = counts_r
+    H, W = col_e.shape
+    m = unmix.shape[0]
+    fr = tmp[:m]
+    tr = tmp[m:]
     n_e = 0
     n_r = 0
-    stats = np.zeros(4, np.int64)  # dropped events, dropped runs, filled, clashes
     for y in range(H):
         # the maps come uninitialised: each row is cleared just before it is labelled (while it is in cache)
         col_e[y] = np.nan
@@ -1587,7 +1617,7 @@ def twoshot_rows(
         if mode == 1:
             nr = _pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge)
         else:
-            nr = _event_runs(fr, tr, gap_max, ex, es, et, cnt, rs, re, rc, link, edge, left, right)
+            nr = _event_runs(fr, tr, gap_max, ex, es, et, cnt, ps, rs, re, rc, link, edge, left, right)
         n_e = _label_row(
             y, nr, rs, re, rc, link, edge, tl, pos, lab, nx, nv, table, A, k, period, sw, n_copies, proj_w,
             lo, hi, use_range, edges_mode, min_frac, smooth, sm, marks, bounds, votes, col_e, chain_e, n_e, span_e,
@@ -1618,7 +1648,7 @@ def twoshot_rows(
                     stats[0] += _drop_chains(yy, col_e, chain_e, first_e, agree_e, dis_e, npx_e, span_e, min_support)
                 for x in range(W):
                     conf[yy, x] = np.float32(np.isfinite(col_e[yy, x]))
-    return n_e, n_r, stats[0], stats[1], stats[2], stats[3]
+    return n_e, n_r
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
