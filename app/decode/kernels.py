@@ -784,6 +784,18 @@ def _confirmed_labels(nr, pos, lab, k, period, cw):
                 lab[i] = -2
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _column_at(xx, v0, x0, slope, lo_v, hi_v, shift, use_range, lo, hi, y):
+    """Pixel xx's column on its segment (node x0 at column v0, slope), shifted to the chosen copy, and whether
+    it is kept: within the chain's column span and, with use_range, the pixel's depth-range interval."""
+    v = v0 + (xx - x0) * slope
+    ok = (v >= lo_v) & (v <= hi_v)
+    v += shift
+    if use_range:
+        ok &= (v >= lo[y, xx]) & (v <= hi[y, xx])
+    return v, ok
+
+
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _segments(nx, nn, xa, nxp, first, seg_of):
     """seg_of[q] = the segment of pixel xa + q (q < nxp) between the chain's nodes nx[:nn] (increasing): the one
@@ -1039,11 +1051,7 @@ def _label_row(
             dg = 0
             for q in range(nxp):
                 xx = xa + q
-                v = gv[q] + (xx - gx[q]) * gs[q]
-                ok = (v >= lo_v) & (v <= hi_v)
-                v += shift
-                if use_range:
-                    ok &= (v >= lo[y, xx]) & (v <= hi[y, xx])
+                v, ok = _column_at(xx, gv[q], gx[q], gs[q], lo_v, hi_v, shift, use_range, lo, hi, y)
                 v32 = np.float32(v)
                 if ok:
                     out_col[y, xx] = v32
@@ -1066,11 +1074,7 @@ def _label_row(
         else:
             for q in range(nxp):
                 xx = xa + q
-                v = gv[q] + (xx - gx[q]) * gs[q]
-                ok = (v >= lo_v) & (v <= hi_v)
-                v += shift
-                if use_range:
-                    ok &= (v >= lo[y, xx]) & (v <= hi[y, xx])
+                v, ok = _column_at(xx, gv[q], gx[q], gs[q], lo_v, hi_v, shift, use_range, lo, hi, y)
                 if ok:
                     out_col[y, xx] = v
                     out_chain[y, xx] = n_chains
