@@ -445,7 +445,8 @@ def _append_where_impl(flags, n, out):
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge):
     """Runs of equal code along a row (code (W,), differences fr (C, W)); link and sub-pixel edge (zero
-    crossing) between neighbours. trans: _transitions(wts, link_ok, n). rc needs room for 2 W + 1 values."""
+    crossing) between neighbours. trans: _transitions(wts, link_ok, n). rs, re, rc need room for W + 16 values
+    and rc for 2 W + 17 (the runs to search are listed after its first W + 1, sixteen at a time)."""
     W = code.shape[0]
     C = fr.shape[0]
     nr = _run_bounds(code, rs, re, rc)
