@@ -41,7 +41,14 @@ _VI = ir.VectorType(_I32, LANES)
 
 def _splat(builder: ir.IRBuilder, value: ir.Value, vtype: ir.VectorType) -> ir.Value:
     v = builder.insert_element(ir.Constant(vtype, ir.Undefined), value, ir.Constant(_I32, 0))
-    return builder.shuffle_vector(v, ir.Constant(vtype, ir.Undefined), ir.Constant(_VI, [0] * LANES))
+    pick = ir.Constant(ir.VectorType(_I32, vtype.count), [0] * vtype.count)
+    return builder.shuffle_vector(v, ir.Constant(vtype, ir.Undefined), pick)
+
+
+def _positions(builder: ir.IRBuilder, x: ir.Value) -> ir.Value:
+    """The int64 vector x, x + 1, ..., x + LANES - 1 (the positions of the lanes of a block at x)."""
+    v64 = ir.VectorType(_I64, LANES)
+    return builder.add(_splat(builder, x, v64), ir.Constant(v64, list(range(LANES))))
 
 
 def _masked_gather(builder: ir.IRBuilder, base: ir.Value, index: ir.Value, value: ir.Type, name: str) -> ir.Value:
@@ -65,11 +72,12 @@ def _masked_gather(builder: ir.IRBuilder, base: ir.Value, index: ir.Value, value
     return builder.call(fn, [gep, align, ir.Constant(vmask, [1] * lanes), ir.Constant(vval, ir.Undefined)])
 
 
-def _append(builder: ir.IRBuilder, values: ir.Value, mask: ir.Value, base: ir.Value, at: ir.Value) -> None:
-    """Store the lanes of 16 int64 values where mask is on, packed, at base[at:] (whole vectors are written: the
-    caller keeps room for 16 more values there). Compressed into registers eight lanes at a time, each stored
-    plainly: vpcompressq with a memory operand is several times slower on Intel, and LLVM splits a 16-lane
-    compress through an aligned stack slot that numba's frames do not align (a crash)."""
+def _append(builder: ir.IRBuilder, values: ir.Value, mask: ir.Value, base: ir.Value, at: ir.Value) -> ir.Value:
+    """Store the lanes of 16 int64 values where mask is on, packed, at base[at:], and return at + their count
+    (whole vectors are written: the caller keeps room for 16 more values there). Compressed into registers
+    eight lanes at a time, each stored plainly: vpcompressq with a memory operand is several times slower on
+    Intel, and LLVM splits a 16-lane compress through an aligned stack slot that numba's frames do not align
+    (a crash)."""
     half = ir.VectorType(_I64, 8)
     hmask = ir.VectorType(ir.IntType(1), 8)
     compress = cgutils.get_or_insert_function(
@@ -83,6 +91,7 @@ def _append(builder: ir.IRBuilder, values: ir.Value, mask: ir.Value, base: ir.Va
         packed = builder.call(compress, [v, m, ir.Constant(half, ir.Undefined)])
         builder.store(packed, builder.bitcast(builder.gep(base, [at]), half.as_pointer()), align=8)
         at = builder.add(at, builder.zext(builder.call(popcount, [builder.bitcast(m, _I8)]), _I64))
+    return at
 
 
 def _c(t: types.Type, ndim: int, dtypes: tuple) -> bool:
@@ -274,17 +283,9 @@ def run_bounds16(typingctx, code, x, rs, re, rc, ns, ne):
         coded = builder.icmp_signed(">=", cur, ir.Constant(v8, [0] * LANES))
         start = builder.and_(coded, builder.icmp_signed("!=", cur, prev))
         end = builder.and_(coded, builder.icmp_signed("!=", cur, nxt))
-        pos = builder.add(_splat(builder, xa, v64), ir.Constant(v64, list(range(LANES))))
-        _append(builder, pos, start, s.data, n_s)
+        pos = _positions(builder, xa)
         _append(builder, builder.sext(cur, v64), start, k.data, n_s)
-        _append(builder, pos, end, e.data, n_e)
-        i16 = ir.IntType(LANES)
-        popcount = cgutils.get_or_insert_function(builder.module, ir.FunctionType(i16, [i16]), f"llvm.ctpop.i{LANES}")
-
-        def count(mask):
-            return builder.zext(builder.call(popcount, [builder.bitcast(mask, i16)]), _I64)
-
-        out = (builder.add(n_s, count(start)), builder.add(n_e, count(end)))
+        out = (_append(builder, pos, start, s.data, n_s), _append(builder, pos, end, e.data, n_e))
         return context.make_tuple(builder, ret, out)
 
     return sig, codegen
@@ -304,7 +305,6 @@ def append_where16(typingctx, flags, x, out, n):
         return None
     sig = types.int64(flags, x, out, n)
     v8 = ir.VectorType(ir.IntType(8), LANES)
-    v64 = ir.VectorType(_I64, LANES)
 
     def codegen(context, builder, signature, args):
         kinds = signature.args
@@ -317,11 +317,7 @@ def append_where16(typingctx, flags, x, out, n):
         # (numba stores a bool as one byte: 0 or 1)
         raw = builder.load(builder.bitcast(builder.gep(f.data, [xa]), v8.as_pointer()), align=1)
         keep = builder.icmp_unsigned("!=", raw, ir.Constant(v8, [0] * LANES))
-        pos = builder.add(_splat(builder, xa, v64), ir.Constant(v64, list(range(LANES))))
-        _append(builder, pos, keep, o.data, na)
-        i16 = ir.IntType(LANES)
-        popcount = cgutils.get_or_insert_function(builder.module, ir.FunctionType(i16, [i16]), f"llvm.ctpop.i{LANES}")
-        return builder.add(na, builder.zext(builder.call(popcount, [builder.bitcast(keep, i16)]), _I64))
+        return _append(builder, _positions(builder, xa), keep, o.data, na)
 
     return sig, codegen
 
@@ -345,9 +341,7 @@ def fill8(typingctx, arr, i, value):
         at = context.cast(builder, args[1], kinds[1], types.int64)
         val = context.cast(builder, args[2], kinds[2], kinds[0].dtype)
         vec = ir.VectorType(context.get_value_type(kinds[0].dtype), 8)
-        v = builder.insert_element(ir.Constant(vec, ir.Undefined), val, ir.Constant(_I32, 0))
-        v = builder.shuffle_vector(v, ir.Constant(vec, ir.Undefined), ir.Constant(_PICK8, [0] * 8))
-        builder.store(v, builder.bitcast(builder.gep(a.data, [at]), vec.as_pointer()), align=4)
+        builder.store(_splat(builder, val, vec), builder.bitcast(builder.gep(a.data, [at]), vec.as_pointer()), align=4)
         return context.get_dummy_value()
 
     return sig, codegen
