@@ -786,40 +786,43 @@ def _confirmed_labels(nr, pos, lab, k, period, cw):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _column_at(xx, v0, x0, slope, lo_v, hi_v, shift, use_range, lo, hi, y):
-    """Pixel xx's column on its segment (node x0 at column v0, slope), shifted to the chosen copy, and whether
-    it is kept: within the chain's column span and, with use_range, the pixel's depth-range interval."""
-    v = v0 + (xx - x0) * slope
+def _column_at(q, line, lo_v, hi_v, use_range, lo, hi, y, xx):
+    """The column of pixel xx = xa + q on its segment's line (line: float32 (column at xa, slope), interleaved),
+    and whether it is kept: within the chain's column span [lo_v, hi_v] and, with use_range, the pixel's
+    depth-range interval. float32 throughout: twice the lanes of float64, and the columns are stored as float32."""
+    v = line[2 * q] + np.float32(q) * line[2 * q + 1]
     ok = (v >= lo_v) & (v <= hi_v)
-    v += shift
     if use_range:
         ok &= (v >= lo[y, xx]) & (v <= hi[y, xx])
     return v, ok
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
-def _segments(nx, nn, xa, nxp, first, seg_of):
-    """seg_of[q] = the segment of pixel xa + q (q < nxp) between the chain's nodes nx[:nn] (increasing): the one
-    after the last interior node left of it (the first segment extends left, the last right), i.e. the last
-    interior node r whose first pixel right of it, s_r, is <= the pixel (s never decreases). first: scratch
-    for nn values; seg_of needs room for nxp + 8."""
+def _segment_values(nx, nn, xa, nxp, first, seg_of, vals, out):
+    """out[q] = vals[the segment of pixel xa + q] (q < nxp), the segments being those between the chain's nodes
+    nx[:nn] (increasing): the one after the last interior node left of the pixel (the first segment extends
+    left, the last right), i.e. the last interior node r whose first pixel right of it, s_r, is <= the pixel
+    (s never decreases). first: scratch for nn values; seg_of (int64) scratch and out need room for nxp + 8."""
     short = True
     for r in range(1, nn - 1):
         first[r] = min(max(int(np.floor(nx[r])) + 1 - xa, 0), nxp)
     for r in range(1, nn - 2):
         short &= first[r + 1] - first[r] <= 8
     if short:
-        # segments of at most 8 pixels (all but freak chains): each node writes its index over the 8 pixels
-        # from its s_r, in order, so the next node overwrites the rest (a vector store per node; counting the
-        # nodes per pixel and a running sum cost a dependent read-modify-write per node and per pixel)
+        # segments of at most 8 pixels (all but freak chains): each node writes its segment's value over the 8
+        # pixels from its s_r, in order, so the next node overwrites the rest (a vector store per node; a segment
+        # index per pixel cost a gather per pixel, and counting the nodes per pixel with a running sum a
+        # dependent read-modify-write per node and per pixel)
         s1 = first[1] if nn > 2 else nxp
+        v = vals[0]
         for q in range(s1):
-            seg_of[q] = 0
+            out[q] = v
         for r in range(1, nn - 1):
-            _fill8(seg_of, first[r], r)
+            _fill8(out, first[r], vals[r])
         if nn > 2:
+            v = vals[nn - 2]
             for q in range(first[nn - 2] + 8, nxp):
-                seg_of[q] = nn - 2
+                out[q] = v
         return
     for q in range(nxp + 1):
         seg_of[q] = 0
@@ -829,6 +832,7 @@ def _segments(nx, nn, xa, nxp, first, seg_of):
     for q in range(nxp):
         seg += seg_of[q]
         seg_of[q] = seg
+    _gather(out, vals, seg_of, nxp)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
@@ -1018,20 +1022,20 @@ def _label_row(
         # pixels of the end stripes lie within one stripe of the outer edges; beyond is a guess
         lo_v = nv[0] - END_EXT * sw if edges_mode else nv[0] - 0.5 * sw
         hi_v = nv[nn - 1] + END_EXT * sw if edges_mode else nv[nn - 1] + 0.5 * sw
-        # per-node slopes once per chain (sm is free after smoothing): no division per pixel
-        for r in range(nn - 1):
-            sm[r] = (nv[r + 1] - nv[r]) / (nx[r + 1] - nx[r])
-        # each pixel's segment (see _segments); the segments' nodes and slopes are then gathered per pixel, so
-        # the loop that interpolates reads plain rows and is vectorised (a table read kept it scalar)
+        # each segment's line once per chain, as a float32 pair in one int64: its column at the chain's first pixel
+        # xa, with the copy's shift, and its slope (no division per pixel). Every pixel then gets its segment's
+        # pair (see _segment_values), so the loop that interpolates reads a plain row and is vectorised
         nxp = xb - xa + 1
-        seg_of = tl  # free once the windows are looked up
-        _segments(nx, nn, xa, nxp, pos, seg_of)  # (pos is free after the copy vote)
-        gv = work[1]
-        gx = work[2]
-        gs = work[3]
-        _gather(gv, nv, seg_of, nxp)
-        _gather(gx, nx, seg_of, nxp)
-        _gather(gs, sm, seg_of, nxp)
+        lines = work[1].view(np.float32)
+        for r in range(nn - 1):
+            slope = (nv[r + 1] - nv[r]) / (nx[r + 1] - nx[r])
+            lines[2 * r] = np.float32(nv[r] + shift + (xa - nx[r]) * slope)
+            lines[2 * r + 1] = np.float32(slope)
+        line = work[2].view(np.float32)
+        # (tl is free once the windows are looked up, pos after the copy vote)
+        _segment_values(nx, nn, xa, nxp, pos, tl, work[1].view(np.int64), work[2].view(np.int64))
+        lo_v = np.float32(lo_v + shift)
+        hi_v = np.float32(hi_v + shift)
         if n_chains < npx.shape[0]:
             # the row above is read at y - 1 >= 0 and its votes masked at y = 0 (one loop, vectorised)
             up = max(y - 1, 0)
@@ -1052,8 +1056,7 @@ def _label_row(
             dg = 0
             for q in range(nxp):
                 xx = xa + q
-                v, ok = _column_at(xx, gv[q], gx[q], gs[q], lo_v, hi_v, shift, use_range, lo, hi, y)
-                v32 = np.float32(v)
+                v32, ok = _column_at(q, line, lo_v, hi_v, use_range, lo, hi, y, xx)
                 if ok:
                     out_col[y, xx] = v32
                     out_chain[y, xx] = n_chains
@@ -1075,7 +1078,7 @@ def _label_row(
         else:
             for q in range(nxp):
                 xx = xa + q
-                v, ok = _column_at(xx, gv[q], gx[q], gs[q], lo_v, hi_v, shift, use_range, lo, hi, y)
+                v, ok = _column_at(q, line, lo_v, hi_v, use_range, lo, hi, y, xx)
                 if ok:
                     out_col[y, xx] = v
                     out_chain[y, xx] = n_chains

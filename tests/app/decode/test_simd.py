@@ -303,13 +303,15 @@ def test_pixel_segments_are_after_the_last_interior_node_left_of_each_pixel(spac
         nx = np.sort(rng.uniform(-3, spacing * nn, nn)) + np.arange(nn) * 1e-6  # increasing
         if trial % 5 == 0:
             nx[nn // 2 :] += 20  # one long segment amid short ones
+        vals = 100 + 3 * np.arange(nn, dtype=np.int64)
         xa, xb = int(np.floor(nx[0])) + int(rng.integers(-1, 2)), int(np.ceil(nx[-1])) + int(rng.integers(-1, 2))
         nxp = max(xb - xa + 1, 1)
-        seg_of = np.full(nxp + 16, -7, np.int64)
-        kernels._segments(nx, nn, xa, nxp, np.empty(nn + 1, np.int64), seg_of)
+        out = np.full(nxp + 16, -7, np.int64)
+        seg_of = np.empty(nxp + 16, np.int64)
+        kernels._segment_values(nx, nn, xa, nxp, np.empty(nn + 1, np.int64), seg_of, vals, out)
         pixels = xa + np.arange(nxp)
         expected = [max([r for r in range(1, nn - 1) if np.floor(nx[r]) + 1 <= x] or [0]) for x in pixels]
-        assert seg_of[:nxp].tolist() == expected
+        assert out[:nxp].tolist() == vals[expected].tolist()
 
 
 @njit(cache=False)
