@@ -26,6 +26,7 @@ import cv2
 import numpy as np
 from numba import njit
 
+import app.jit  # noqa: F401  (numba's vector width, before anything compiles)
 from app.errors import InputError
 from calibration.model import Calibration
 

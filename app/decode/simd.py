@@ -27,6 +27,8 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
+import app.jit  # noqa: F401  (numba's vector width, before anything compiles)
+
 LANES = 16  # pixels per differences16 call
 _LLVM_NAME = {types.float32: "f32", types.float64: "f64", types.int32: "i32", types.int64: "i64"}
 

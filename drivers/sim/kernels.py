@@ -11,6 +11,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+import app.jit  # noqa: F401  (numba's vector width, before anything compiles)
+
 
 @numba.njit(cache=True, nogil=True)
 def light_to_linear(
