@@ -695,20 +695,17 @@ def _window_positions(nr, rc, link, table, A, k, pos, keys):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
-def _increasing(src, dst, n):
-    """dst[:n] = src[:n] made strictly increasing: a value not above the one before becomes that one + 1e-3.
-    A vectorised test first: the values nearly always increase already, and the fix is sequential."""
+def _increasing(x, n):
+    """x[:n] made strictly increasing in place: a value not above the one before becomes that one + 1e-3.
+    A vectorised test first: the values nearly always increase already, and the fix is sequential. (In place:
+    a copy from an array to itself defeats the compiler's overlap check and runs scalar.)"""
     ok = True
     for r in range(1, n):
-        ok &= src[r] > src[r - 1]
+        ok &= x[r] > x[r - 1]
     if ok:
-        for r in range(n):
-            dst[r] = src[r]
         return
-    if n > 0:
-        dst[0] = src[0]
     for r in range(1, n):
-        dst[r] = dst[r - 1] + 1e-3 if src[r] <= dst[r - 1] else src[r]
+        x[r] = x[r - 1] + 1e-3 if x[r] <= x[r - 1] else x[r]
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -933,7 +930,7 @@ def _label_row(
             for q in range(nn):
                 nx[q] = 0.5 * (rs_c[q] + re_c[q])
                 nv[q] = v0 + q * sw
-        _increasing(nx, nx, nn)
+        _increasing(nx, nn)
         if smooth > 0 and nn > 2 * smooth:
             # noise in single edge positions averages out over a few neighbouring edges: replace each
             # node by a local straight-line fit x(v) over +-smooth nodes (surfaces are smooth within a chain)
@@ -966,7 +963,9 @@ def _label_row(
                 for q in range(nw):
                     acc += nx[a0 + q] * (1.0 / nw + (q - smooth) * tc)
                 sm[r] = acc
-            _increasing(sm, nx, nn)
+            for r in range(nn):
+                nx[r] = sm[r]
+            _increasing(nx, nn)
         xa = rs[i0]  # the first and last whole pixel of the chain's end stripes
         xb = re[i1]
         if xa < 0:
