@@ -999,12 +999,35 @@ def _label_row(
                 # clamped in float: int() of NaN or of values past int64 is undefined (x86 gives INT64_MIN)
                 qf = np.ceil((glo[r] - v) * inv_span)
                 q0[r] = int(min(qf, n_copies)) if qf > 0.0 else 0
-            for q in range(n_copies):
-                cnt = 0
-                offset = q * copy_span
+            if n_copies <= 4:
+                # the usual few copies counted in one pass over the nodes (a pass per copy repeats the loop's
+                # set-up and scalar tail per copy, for ~85 nodes)
+                c0 = 0
+                c1 = 0
+                c2 = 0
+                c3 = 0
                 for r in range(nn):
-                    cnt += (q >= q0[r]) & (nv[r] + offset <= ghi[r])
-                votes[q] = cnt
+                    v = nv[r]
+                    hv = ghi[r]
+                    qr = q0[r]
+                    c0 += (qr <= 0) & (v <= hv)
+                    c1 += (qr <= 1) & (v + copy_span <= hv)
+                    c2 += (qr <= 2) & (v + 2 * copy_span <= hv)
+                    c3 += (qr <= 3) & (v + 3 * copy_span <= hv)
+                votes[0] = c0
+                if n_copies > 1:
+                    votes[1] = c1
+                if n_copies > 2:
+                    votes[2] = c2
+                if n_copies > 3:
+                    votes[3] = c3
+            else:
+                for q in range(n_copies):
+                    cnt = 0
+                    offset = q * copy_span
+                    for r in range(nn):
+                        cnt += (q >= q0[r]) & (nv[r] + offset <= ghi[r])
+                    votes[q] = cnt
             best_q = -1
             best_n = 0
             second_n = 0
