@@ -9,7 +9,9 @@ for the clock drop of the first AVX-512 parts). The decoder's loops are short an
 pixels; at 512 bits they take ~10 % less time (two-shot decode + triangulate at 640x480: 4.12 -> 3.66 ms on
 an Emerald Rapids core). Results are the same: LLVM keeps float reductions in order without fast-math, so
 the vector width changes no rounding. numba reads the CPU features once, when its CPU target is created;
-`NUMBA_CPU_NAME` or `NUMBA_CPU_FEATURES` set by the user win (numba's own settings).
+`NUMBA_CPU_NAME` or `NUMBA_CPU_FEATURES` set by the user win (numba's own settings), and
+`SLSCAN_WIDE_VECTORS=0` keeps LLVM's choice (measured only on Emerald Rapids: CPUs that lower their clock
+for 512-bit instructions or split them in two may not gain).
 """
 
 from __future__ import annotations
@@ -21,6 +23,8 @@ WIDE_VECTORS = "-prefer-256-bit"  # appended to the host's features where it has
 
 def use_wide_vectors() -> bool:
     """Let LLVM vectorise with 512-bit vectors on AVX-512 CPUs (see above); whether it was set."""
+    if os.environ.get("SLSCAN_WIDE_VECTORS", "1") == "0":
+        return False
     if os.environ.get("NUMBA_CPU_NAME") is not None or os.environ.get("NUMBA_CPU_FEATURES") is not None:
         return False
     from numba.core import codegen, config, registry

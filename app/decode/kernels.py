@@ -880,8 +880,9 @@ def _label_row(
     and, against row y - 1 (labelled, not yet checked), its vertical votes within tol into agree[c] and
     disagree[c] as _row_votes would, while the columns are written (a pixel two chains share is counted for the
     later one, which writes it last).
-    work (4, n): row 0 the smoothed nodes, then the slopes; rows 1-2 the copy vote's range ends, rows 1-3 the
-    column write's gathered node values. marks (3, n) int8 and bounds (2, n) int64: the chains' ends."""
+    work (3, n) float64: row 0 the smoothed nodes; rows 1-2 the copy vote's range ends, then row 1 the segments'
+    lines (float32 pairs) and row 2 the pixels' lines (see _segment_values). marks (3, n) int8 and bounds (2, n)
+    int64: the chains' ends."""
     W = out_col.shape[1]
     row_first = n_chains  # this row's first chain
     if nr < k:
@@ -930,6 +931,8 @@ def _label_row(
             for q in range(nn):
                 nx[q] = 0.5 * (rs_c[q] + re_c[q])
                 nv[q] = v0 + q * sw
+        if nn < 2:
+            continue  # no segment to interpolate on (only with a window of k < 3 in the edges mode)
         _increasing(nx, nn)
         if smooth > 0 and nn > 2 * smooth:
             # noise in single edge positions averages out over a few neighbouring edges: replace each
@@ -1697,7 +1700,7 @@ def _row_scratch(n, W, n_copies):
     lab = np.empty(n, np.int32)  # run labels (< period): eight to a vector in _confirmed_labels
     nx = np.empty(n, np.float64)
     nv = np.empty(n, np.float64)
-    sm = np.empty((4, n), np.float64)
+    sm = np.empty((3, n), np.float64)
     marks = np.empty((3, n), np.int8)
     bounds = np.empty((2, n), np.int64)
     votes = np.zeros(max(n_copies, 1), np.int64)

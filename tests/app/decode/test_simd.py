@@ -312,6 +312,7 @@ def test_pixel_segments_are_after_the_last_interior_node_left_of_each_pixel(spac
         pixels = xa + np.arange(nxp)
         expected = [max([r for r in range(1, nn - 1) if np.floor(nx[r]) + 1 <= x] or [0]) for x in pixels]
         assert out[:nxp].tolist() == vals[expected].tolist()
+        assert (out[nxp + 8 :] == -7).all()  # nothing past the room the caller keeps
 
 
 @njit(cache=False)
