@@ -39,6 +39,7 @@ from app.decode.simd import (
     append_where16,
     append_where16_takes,
     differences16,
+    differences16_pairs,
     differences16_takes,
     fill8,
     gather8,
@@ -1384,7 +1385,10 @@ def _differences_impl(f1, f2, y, lin, dlin, pk, unmix, ta, tmp):
             u00, u01, u02 = unmix[0, 0], unmix[0, 1], unmix[0, 2]
             u10, u11, u12 = unmix[1, 0], unmix[1, 1], unmix[1, 2]
             x = 0
-            if pk.shape[0] == lin.size:  # the tables packed in pairs (pack_tables): half the gathered elements
+            if pk.shape[0] == PAIR_ENTRIES or pk.shape[0] == 3 * PAIR_ENTRIES:
+                # a table over 8-bit value pairs (pair_tables): one gather per channel for both frames
+                x = _pair_differences(a, b, pk, u00, u01, u02, u10, u11, u12, ta, tmp)
+            elif pk.shape[0] == lin.size:  # the tables packed in pairs (pack_tables): half the gathered elements
                 while x + LANES <= W:
                     differences16(a, b, pk, pk, u00, u01, u02, u10, u11, u12, ta, tmp, x)
                     x += LANES
@@ -1402,6 +1406,31 @@ def _differences_impl(f1, f2, y, lin, dlin, pk, unmix, ta, tmp):
         _differences_loop(f1, f2, y, lin, dlin, unmix, ta, tmp)
 
     return scalar
+
+
+def _pair_differences(a, b, pairs, u00, u01, u02, u10, u11, u12, ta, tmp):
+    """_differences of the row's whole groups of 16 pixels from a pair table (differences16_pairs) for 8-bit
+    frames; returns the pixels done (0 for other frames: the caller goes on with the other tables)."""
+    raise NotImplementedError("numba only")
+
+
+@overload(_pair_differences, jit_options={"nogil": True, "error_model": "numpy", "_nrt": False})
+def _pair_differences_impl(a, b, pairs, u00, u01, u02, u10, u11, u12, ta, tmp):
+    if a.dtype == types.uint8:
+
+        def eight_bit(a, b, pairs, u00, u01, u02, u10, u11, u12, ta, tmp):
+            x = 0
+            while x + LANES <= a.shape[0]:
+                differences16_pairs(a, b, pairs, u00, u01, u02, u10, u11, u12, ta, tmp, x)
+                x += LANES
+            return x
+
+        return eight_bit
+
+    def other(a, b, pairs, u00, u01, u02, u10, u11, u12, ta, tmp):
+        return 0
+
+    return other
 
 
 @njit(nogil=True, error_model="numpy", _nrt=False)
@@ -1510,15 +1539,16 @@ def _classify_row_any(f1, f2, y, lin, dlin, unmix, t_abs, t_rel, t_rel_edge, blo
             cur = nxt
 
 
-PACK_LEVELS = 4096  # tables of up to this many levels per channel are packed per frame (8-bit: 256)
+PACK_LEVELS = 4096  # tables of up to this many levels per channel are packed (8-bit: 256)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def pack_tables(lin, dlin):
     """The linearisation and noise-slope tables (3, levels) float32 as one int64 table whose entry i holds the
     float32 pair (lin, dlin) of flat entry i (the gathered differences read both with one 8-byte gather); an
-    empty table for more than PACK_LEVELS levels (16-bit frames: packing 3 x 65536 entries per frame would
-    cost more than it saves)."""
+    empty table for more than PACK_LEVELS levels (16-bit frames keep the two gathers: packing 3 x 65536 entries
+    was measured when it ran per frame, where it cost more than it saved; it now runs once per decoder, see
+    TwoShotDecoder.tables). 8-bit frames read pair_tables instead."""
     if lin.shape[1] > PACK_LEVELS or lin.shape != dlin.shape:
         return np.empty(0, np.int64)
     C, levels = lin.shape
@@ -1531,12 +1561,40 @@ def pack_tables(lin, dlin):
     return pk
 
 
+PAIR_ENTRIES = 256 * 256  # a pair table's entries per channel (8-bit frames)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def pair_tables(lin, dlin):
+    """For 8-bit frames (tables (3, 256) float32), the int64 table over value pairs that differences16_pairs
+    reads: entry c * PAIR_ENTRIES + 256 a + b holds the float32 pair (lin[c, b] - lin[c, a], dlin[c, b] +
+    dlin[c, a]), one table of PAIR_ENTRIES for all three channels when their tables are equal (512 KB), else
+    three; an empty table for other tables. Built once per decoder (TwoShotDecoder.tables)."""
+    if lin.shape != (3, 256) or dlin.shape != (3, 256):
+        return np.empty(0, np.int64)
+    shared = True
+    for c in range(1, 3):
+        for v in range(256):
+            shared &= (lin[c, v] == lin[0, v]) & (dlin[c, v] == dlin[0, v])
+    C = 1 if shared else 3
+    pk = np.empty(C * PAIR_ENTRIES, np.int64)
+    pairs = pk.view(np.float32)
+    for c in range(C):
+        for a in range(256):
+            for b in range(256):
+                i = c * PAIR_ENTRIES + 256 * a + b
+                pairs[2 * i] = lin[c, b] - lin[c, a]
+                pairs[2 * i + 1] = dlin[c, b] + dlin[c, a]
+    return pk
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def twoshot_rows(
     f1,
     f2,
     lin,
     dlin,
+    pk,
     unmix,
     t_abs,
     t_rel,
@@ -1576,7 +1634,8 @@ def twoshot_rows(
     a value filled from the runs map gets chain id (runs chain + cap). tol <= 0 skips the vertical check.
     mode: 0 = the zero-crossing stripes alone ("events"), 1 = the pixel runs alone ("runs", into col_e/chain_e),
     2 = both merged ("both"); col_r/chain_r are only used by mode 2. The maps need no initialisation, and
-    conf (1 where a value, else 0) is written in every mode.
+    conf (1 where a value, else 0) is written in every mode. pk: the tables read together, built once per
+    decoder (TwoShotDecoder.tables: pair_tables for 8-bit frames, else pack_tables).
     Returns (events chains, runs chains, events dropped, runs dropped, filled, clashes).
     """
     H, W = col_e.shape
@@ -1587,7 +1646,6 @@ def twoshot_rows(
     # the row's differences (0..m-1), sign thresholds (m..2m-1) and _classify_row's scratch
     tmp = np.empty((2 * m + 2, W), np.float32)
     code = np.empty(W, np.int8)
-    pk = pack_tables(lin, dlin)
     n = (m + 1) * (2 * W + 8)
     rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, marks, bounds, votes = _row_scratch(n, W, n_copies)
     ex = np.empty((m, n), np.float64)

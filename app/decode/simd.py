@@ -126,6 +126,96 @@ def gather8_takes(dst: types.Type, table: types.Type, idx: types.Type) -> bool:
     )
 
 
+def _channels(builder: ir.IRBuilder, pa: ir.Value, pb: ir.Value, elem: ir.Type, xa: ir.Value) -> list[list[ir.Value]]:
+    """The 16 pixels at xa of two (W, 3) rows: each frame's channels split and widened to int32 vectors."""
+    raw = ir.VectorType(elem, 3 * LANES)
+    start = builder.mul(xa, ir.Constant(_I64, 3))
+    chans = []
+    for p in (pa, pb):
+        v = builder.load(builder.bitcast(builder.gep(p, [start]), raw.as_pointer()), align=1)
+        per = []
+        for c in range(3):
+            pick = ir.Constant(_VI, list(range(c, 3 * LANES, 3)))
+            per.append(builder.zext(builder.shuffle_vector(v, ir.Constant(raw, ir.Undefined), pick), _VI))
+        chans.append(per)
+    return chans
+
+
+def _mix_store(
+    builder: ir.IRBuilder, e: list, n: list, coefs: tuple, pout: ir.Value, width: ir.Value, xa: ir.Value
+) -> None:
+    """Rows 0-3 of out at xa: the two unmixed differences of the channels' differences e and their noise floors
+    from the channels' noise slopes n (coefs: the two unmixing rows and the half noise floor, scalars)."""
+    co = [_splat(builder, v, _V) for v in coefs]
+    absf = cgutils.get_or_insert_function(builder.module, ir.FunctionType(_V, [_V]), f"llvm.fabs.v{LANES}f32")
+    w = [builder.call(absf, [c]) for c in co[:6]]
+    ta = co[6]
+
+    def mix(u0, u1, u2, v):  # (u0 v0 + u1 v1) + u2 v2, the scalar loop's order
+        return builder.fadd(builder.fadd(builder.fmul(u0, v[0]), builder.fmul(u1, v[1])), builder.fmul(u2, v[2]))
+
+    rows = (
+        mix(co[0], co[1], co[2], e),
+        mix(co[3], co[4], co[5], e),
+        builder.fmul(ta, mix(w[0], w[1], w[2], n)),
+        builder.fmul(ta, mix(w[3], w[4], w[5], n)),
+    )
+    for r, val in enumerate(rows):
+        at = builder.add(builder.mul(ir.Constant(_I64, r), width), xa)
+        builder.store(val, builder.bitcast(builder.gep(pout, [at]), _V.as_pointer()), align=4)
+
+
+@intrinsic
+def differences16_pairs(typingctx, a, b, pairs, u00, u01, u02, u10, u11, u12, ta, out, x):
+    """differences16 for 8-bit frames from a table over value pairs: entry (c * stride) + 256 a + b holds the
+    float32 pair (lin[b] - lin[a], dlin[b] + dlin[a]) of channel c (see pair_tables), stride 65536, or 0 when
+    the three channels share one table. One 8-byte gather per channel for both frames: half the gathered
+    elements of the packed tables (and a few hundred hot entries of the 512 KB table in the L1 cache: the
+    stripes' values cluster). Same values: the pair's float32 difference and sum are the ones computed here
+    from two gathers."""
+    coefs = (u00, u01, u02, u10, u11, u12, ta)
+    if not (
+        _c(a, 2, (types.uint8,))
+        and b == a
+        and _c(pairs, 1, (types.int64,))
+        and all(c == types.float32 for c in coefs)
+        and _c(out, 2, (types.float32,))
+        and isinstance(x, types.Integer)
+    ):
+        return None
+    sig = types.void(a, b, pairs, *coefs, out, x)
+
+    def codegen(context, builder, signature, args):
+        kinds = signature.args
+        xa = context.cast(builder, args[-1], kinds[-1], types.int64)
+        arr = [context.make_array(kinds[i])(context, builder, args[i]) for i in (0, 1, 2, 10)]
+        pa, pb, ppair, pout = (ar.data for ar in arr)
+        width = builder.extract_value(arr[3].shape, 1)
+        chans = _channels(builder, pa, pb, ir.IntType(8), xa)
+        # one table for all channels (65536 entries) or one per channel (3 x 65536)
+        size = builder.trunc(builder.extract_value(arr[2].shape, 0), _I32)
+        stride = builder.select(
+            builder.icmp_unsigned("==", size, ir.Constant(_I32, 65536)), ir.Constant(_I32, 0), ir.Constant(_I32, 65536)
+        )
+        evens = ir.Constant(_VI, list(range(0, 2 * LANES, 2)))
+        odds = ir.Constant(_VI, list(range(1, 2 * LANES, 2)))
+        v32 = ir.VectorType(_F32, 2 * LANES)
+        e = []
+        n = []
+        for c in range(3):
+            off = _splat(builder, builder.mul(stride, ir.Constant(_I32, c)), _VI)
+            idx = builder.add(
+                builder.add(builder.shl(chans[0][c], _splat(builder, ir.Constant(_I32, 8), _VI)), chans[1][c]), off
+            )
+            q = builder.bitcast(_masked_gather(builder, ppair, idx, _I64, "i64"), v32)
+            e.append(builder.shuffle_vector(q, ir.Constant(v32, ir.Undefined), evens))
+            n.append(builder.shuffle_vector(q, ir.Constant(v32, ir.Undefined), odds))
+        _mix_store(builder, e, n, args[3:10], pout, width, xa)
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
 @intrinsic
 def differences16(typingctx, a, b, lin, dlin, u00, u01, u02, u10, u11, u12, ta, out, x):
     """Pixels x .. x + 15 of _row_differences: a, b the two frames' rows (W, 3) uint8/uint16, C-contiguous;
@@ -155,17 +245,7 @@ def differences16(typingctx, a, b, lin, dlin, u00, u01, u02, u10, u11, u12, ta, 
         arr = [context.make_array(kinds[i])(context, builder, args[i]) for i in (0, 1, 2, 3, 11)]
         pa, pb, plin, pdlin, pout = (ar.data for ar in arr)
         width = builder.extract_value(arr[4].shape, 1)
-        # the 16 pixels' 48 channel values of each frame, split into channels and widened to int32 indices
-        raw = ir.VectorType(elem, 3 * LANES)
-        start = builder.mul(xa, ir.Constant(_I64, 3))
-        chans = []
-        for p in (pa, pb):
-            v = builder.load(builder.bitcast(builder.gep(p, [start]), raw.as_pointer()), align=1)
-            per = []
-            for c in range(3):
-                pick = ir.Constant(_VI, list(range(c, 3 * LANES, 3)))
-                per.append(builder.zext(builder.shuffle_vector(v, ir.Constant(raw, ir.Undefined), pick), _VI))
-            chans.append(per)
+        chans = _channels(builder, pa, pb, elem, xa)
         levels = builder.trunc(builder.udiv(builder.extract_value(arr[2].shape, 0), ir.Constant(_I64, 3)), _I32)
         e = []
         n = []
@@ -194,23 +274,7 @@ def differences16(typingctx, a, b, lin, dlin, u00, u01, u02, u10, u11, u12, ta, 
                     _masked_gather(builder, pdlin, ib, _F32, "f32"), _masked_gather(builder, pdlin, ia, _F32, "f32")
                 )
             )
-        co = [_splat(builder, v, _V) for v in args[4:11]]
-        absf = cgutils.get_or_insert_function(builder.module, ir.FunctionType(_V, [_V]), f"llvm.fabs.v{LANES}f32")
-        w = [builder.call(absf, [c]) for c in co[:6]]
-        ta = co[6]
-
-        def mix(u0, u1, u2, v):  # (u0 v0 + u1 v1) + u2 v2, the scalar loop's order
-            return builder.fadd(builder.fadd(builder.fmul(u0, v[0]), builder.fmul(u1, v[1])), builder.fmul(u2, v[2]))
-
-        rows = (
-            mix(co[0], co[1], co[2], e),
-            mix(co[3], co[4], co[5], e),
-            builder.fmul(ta, mix(w[0], w[1], w[2], n)),
-            builder.fmul(ta, mix(w[3], w[4], w[5], n)),
-        )
-        for r, val in enumerate(rows):
-            at = builder.add(builder.mul(ir.Constant(_I64, r), width), xa)
-            builder.store(val, builder.bitcast(builder.gep(pout, [at]), _V.as_pointer()), align=4)
+        _mix_store(builder, e, n, args[4:11], pout, width, xa)
         return context.get_dummy_value()
 
     return sig, codegen

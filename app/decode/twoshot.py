@@ -87,6 +87,7 @@ class TwoShotDecoder:
         self.camera_gamma = camera_gamma
         self.camera_response = camera_response
         self._luts: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._packed: dict[int, np.ndarray] = {}
 
     def luts(self, dtype: np.dtype) -> tuple[np.ndarray, np.ndarray]:
         levels = 65536 if dtype == np.uint16 else 256
@@ -96,6 +97,16 @@ class TwoShotDecoder:
                 resp = None
             self._luts[levels] = linearisation(levels, self.camera_gamma, resp)
         return self._luts[levels]
+
+    def tables(self, dtype: np.dtype) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """luts(dtype) and the table the row kernel reads them from (kernels.pair_tables for 8-bit frames: one
+        gather per channel for both frames; else kernels.pack_tables), built once per frame depth."""
+        lin, dlin = self.luts(dtype)
+        levels = lin.shape[1]
+        if levels not in self._packed:
+            pairs = kernels.pair_tables(lin, dlin)
+            self._packed[levels] = pairs if pairs.size else kernels.pack_tables(lin, dlin)
+        return lin, dlin, self._packed[levels]
 
     @staticmethod
     def _check_pair(frame1: np.ndarray, frame2: np.ndarray) -> None:
@@ -147,7 +158,7 @@ class TwoShotDecoder:
         p, lp, spec = self.params, self.params.label, self.spec
         if p.segmentation not in SEGMENTATIONS:
             raise ValueError(f"segmentation {p.segmentation!r} is not one of {', '.join(SEGMENTATIONS)}")
-        lin, dlin = self.luts(frame1.dtype)
+        lin, dlin, packed = self.tables(frame1.dtype)
         use_range = self.column_range is not None
         lo, hi = self.column_range if use_range else (EMPTY_RANGE, EMPTY_RANGE)
         # all written by the kernel, row by row
@@ -163,6 +174,7 @@ class TwoShotDecoder:
             frame2,
             lin,
             dlin,
+            packed,
             self.unmix,
             np.float32(p.t_abs),
             np.float32(p.t_rel),

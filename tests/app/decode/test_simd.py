@@ -36,10 +36,10 @@ def _scalar(f1, f2, lin, dlin, u, ta, out):
         )  # fmt: skip
 
 
-@pytest.mark.parametrize("packed", [False, True])
+@pytest.mark.parametrize("tables", ["plain", "packed", "pairs", "shared pairs"])
 @pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
 @pytest.mark.parametrize("width", [5, 16, 17, 47, 640])
-def test_gathered_differences_equal_the_scalar_loop(dtype, width, packed):
+def test_gathered_differences_equal_the_scalar_loop(dtype, width, tables):
     rng = np.random.default_rng(width)
     levels = np.iinfo(dtype).max + 1
     f1 = rng.integers(0, levels, (3, width, 3)).astype(dtype)
@@ -48,14 +48,30 @@ def test_gathered_differences_equal_the_scalar_loop(dtype, width, packed):
     f2[0, :4] = levels - 1
     lin = (255 * rng.random((3, levels))).astype(np.float32)
     dlin = rng.random((3, levels)).astype(np.float32)
+    if tables == "shared pairs":  # the three channels' tables equal: one pair table for all
+        lin[1:] = lin[0]
+        dlin[1:] = dlin[0]
     unmix = rng.normal(size=(2, 3)).astype(np.float32)
     ta = np.float32(1.0)
     got = np.full((3, 6, width), np.nan, np.float32)
     want = np.full((3, 6, width), np.nan, np.float32)
-    _dispatched(f1, f2, lin, dlin, unmix, ta, got, _packed(lin, dlin) if packed else UNPACKED)
+    pk = {"plain": UNPACKED, "packed": _packed(lin, dlin)}.get(tables)
+    if pk is None:  # (16-bit tables have no pair table: the plain gathers)
+        pk = kernels.pair_tables(lin, dlin)
+        assert pk.size == (0 if dtype == np.uint16 else (1 if tables == "shared pairs" else 3) * 65536)
+    _dispatched(f1, f2, lin, dlin, unmix, ta, got, pk)
     _scalar(f1, f2, lin, dlin, unmix, ta, want)
     np.testing.assert_array_equal(got[:, :4], want[:, :4])
     assert np.isnan(got[:, 4:]).all()  # rows past the fourth are left alone
+
+
+def test_pair_table_entries_are_the_differences_and_noise_sums_of_value_pairs():
+    rng = np.random.default_rng(3)
+    lin = (255 * rng.random((3, 256))).astype(np.float32)
+    dlin = rng.random((3, 256)).astype(np.float32)
+    pairs = kernels.pair_tables(lin, dlin).view(np.float32).reshape(3, 256, 256, 2)
+    np.testing.assert_array_equal(pairs[..., 0], lin[:, None, :] - lin[:, :, None])  # [c, a, b] = lin[b] - lin[a]
+    np.testing.assert_array_equal(pairs[..., 1], dlin[:, None, :] + dlin[:, :, None])
 
 
 def test_frames_that_are_views_decode_as_their_copies():
