@@ -1380,8 +1380,6 @@ def _differences_impl(f1, f2, y, lin, dlin, pk, unmix, ta, tmp):
             W = f1.shape[1]
             a = f1[y]
             b = f2[y]
-            lf = lin.reshape(lin.size)
-            df = dlin.reshape(dlin.size)
             u00, u01, u02 = unmix[0, 0], unmix[0, 1], unmix[0, 2]
             u10, u11, u12 = unmix[1, 0], unmix[1, 1], unmix[1, 2]
             x = 0
@@ -1392,9 +1390,12 @@ def _differences_impl(f1, f2, y, lin, dlin, pk, unmix, ta, tmp):
                 while x + LANES <= W:
                     differences16(a, b, pk, pk, u00, u01, u02, u10, u11, u12, ta, tmp, x)
                     x += LANES
-            while x + LANES <= W:
-                differences16(a, b, lf, df, u00, u01, u02, u10, u11, u12, ta, tmp, x)
-                x += LANES
+            if x + LANES <= W:  # (a reshape is a runtime call: only where the flat tables are read)
+                lf = lin.reshape(lin.size)
+                df = dlin.reshape(dlin.size)
+                while x + LANES <= W:
+                    differences16(a, b, lf, df, u00, u01, u02, u10, u11, u12, ta, tmp, x)
+                    x += LANES
             _row_differences(
                 a[x:], b[x:], lin[0], lin[1], lin[2], dlin[0], dlin[1], dlin[2], u00, u01, u02, u10, u11, u12, ta,
                 tmp[0, x:], tmp[1, x:], tmp[2, x:], tmp[3, x:],
