@@ -1383,13 +1383,13 @@ def _differences_impl(f1, f2, y, lin, dlin, pk, unmix, ta, tmp):
             u00, u01, u02 = unmix[0, 0], unmix[0, 1], unmix[0, 2]
             u10, u11, u12 = unmix[1, 0], unmix[1, 1], unmix[1, 2]
             x = 0
-            if pk.shape[0] == PAIR_ENTRIES or pk.shape[0] == 3 * PAIR_ENTRIES:
-                # a table over 8-bit value pairs (pair_tables): one gather per channel for both frames
-                x = _pair_differences(a, b, pk, u00, u01, u02, u10, u11, u12, ta, tmp)
-            elif pk.shape[0] == lin.size:  # the tables packed in pairs (pack_tables): half the gathered elements
+            if pk.shape[0] == lin.size:  # the tables packed in pairs (pack_tables): half the gathered elements
                 while x + LANES <= W:
                     differences16(a, b, pk, pk, u00, u01, u02, u10, u11, u12, ta, tmp, x)
                     x += LANES
+            elif lin.shape[1] == 256 and (pk.shape[0] == PAIR_ENTRIES or pk.shape[0] == 3 * PAIR_ENTRIES):
+                # a table over 8-bit value pairs (pair_tables): one gather per channel for both frames
+                x = _pair_differences(a, b, pk, u00, u01, u02, u10, u11, u12, ta, tmp)
             if x + LANES <= W:  # (a reshape is a runtime call: only where the flat tables are read)
                 lf = lin.reshape(lin.size)
                 df = dlin.reshape(dlin.size)
@@ -1573,10 +1573,13 @@ def pair_tables(lin, dlin):
     three; an empty table for other tables. Built once per decoder (TwoShotDecoder.tables)."""
     if lin.shape != (3, 256) or dlin.shape != (3, 256):
         return np.empty(0, np.int64)
+    # shared when the channels' tables are equal bit for bit (== would take -0.0 for 0.0)
+    li = lin.view(np.int32)
+    di = dlin.view(np.int32)
     shared = True
     for c in range(1, 3):
         for v in range(256):
-            shared &= (lin[c, v] == lin[0, v]) & (dlin[c, v] == dlin[0, v])
+            shared &= (li[c, v] == li[0, v]) & (di[c, v] == di[0, v])
     C = 1 if shared else 3
     pk = np.empty(C * PAIR_ENTRIES, np.int64)
     pairs = pk.view(np.float32)

@@ -158,20 +158,20 @@ def test_gathered_link_pass_equals_the_loop():
 
 
 @njit(cache=False)
-def _fused_codes(f1, f2, lin, dlin, unmix, t_abs, t_rel, block, code):
+def _fused_codes(f1, f2, lin, dlin, pk, unmix, t_abs, t_rel, block, code):
     W = f1.shape[1]
     m = unmix.shape[0]
     nb = (W + block - 1) // block
     bmax = np.empty((m, nb + 2), np.float32)
     tmp = np.empty((2 * m + 2, W), np.float32)
     for y in range(f1.shape[0]):
-        pk = kernels.pack_tables(lin, dlin)
         kernels._classify_row(f1, f2, y, lin, dlin, pk, unmix, t_abs, t_rel, t_rel, block, bmax, tmp, False, code[y])
 
 
+@pytest.mark.parametrize("tables", ["packed", "pairs"])
 @pytest.mark.parametrize("channels", [2, 3])  # 3: _classify_row_any, the path for other channel counts
 @pytest.mark.parametrize("width", [64, 61])
-def test_row_classification_skips_nan_like_the_specification(width, channels):
+def test_row_classification_skips_nan_like_the_specification(width, channels, tables):
     """A camera response with NaN entries (a bad calibration) makes some differences NaN: the row kernel's
     block maxima skip them and give them no sign, as twoshot_classify (the specification) does."""
     rng = np.random.default_rng(7)
@@ -188,7 +188,9 @@ def test_row_classification_skips_nan_like_the_specification(width, channels):
     args = (np.float32(2.0), np.float32(0.03))
     kernels.twoshot_classify(f1, f2, lin, dlin, unmix, *args, np.float32(0.03), 8, want, feat, noise)
     got = np.empty((6, width), np.int8)
-    _fused_codes(f1, f2, lin, dlin, unmix, *args, 8, got)
+    pk = kernels.pair_tables(lin, dlin) if tables == "pairs" else kernels.pack_tables(lin, dlin)
+    assert pk.size == (3 * 65536 if tables == "pairs" else 3 * 256)  # (the NaN makes the channels' tables differ)
+    _fused_codes(f1, f2, lin, dlin, pk, unmix, *args, 8, got)
     assert np.isnan(feat[:, ::8, 0]).all() and (want >= 0).mean() > 0.3
     np.testing.assert_array_equal(got, want)
 
