@@ -141,6 +141,17 @@ def _channels(builder: ir.IRBuilder, pa: ir.Value, pb: ir.Value, elem: ir.Type, 
     return chans
 
 
+def _gather_pairs(builder: ir.IRBuilder, base: ir.Value, index: ir.Value) -> tuple[ir.Value, ir.Value]:
+    """base[index] for an int64 table whose entries are float32 pairs (pack_tables, pair_tables): the 16 low
+    halves and the 16 high halves, as two float32 vectors (one 8-byte gather per lane)."""
+    v32 = ir.VectorType(_F32, 2 * LANES)
+    q = builder.bitcast(_masked_gather(builder, base, index, _I64, "i64"), v32)
+    undef = ir.Constant(v32, ir.Undefined)
+    low = builder.shuffle_vector(q, undef, ir.Constant(_VI, list(range(0, 2 * LANES, 2))))
+    high = builder.shuffle_vector(q, undef, ir.Constant(_VI, list(range(1, 2 * LANES, 2))))
+    return low, high
+
+
 def _mix_store(
     builder: ir.IRBuilder, e: list, n: list, coefs: tuple, pout: ir.Value, width: ir.Value, xa: ir.Value
 ) -> None:
@@ -197,9 +208,6 @@ def differences16_pairs(typingctx, a, b, pairs, u00, u01, u02, u10, u11, u12, ta
         stride = builder.select(
             builder.icmp_unsigned("==", size, ir.Constant(_I32, 65536)), ir.Constant(_I32, 0), ir.Constant(_I32, 65536)
         )
-        evens = ir.Constant(_VI, list(range(0, 2 * LANES, 2)))
-        odds = ir.Constant(_VI, list(range(1, 2 * LANES, 2)))
-        v32 = ir.VectorType(_F32, 2 * LANES)
         e = []
         n = []
         for c in range(3):
@@ -207,9 +215,9 @@ def differences16_pairs(typingctx, a, b, pairs, u00, u01, u02, u10, u11, u12, ta
             idx = builder.add(
                 builder.add(builder.shl(chans[0][c], _splat(builder, ir.Constant(_I32, 8), _VI)), chans[1][c]), off
             )
-            q = builder.bitcast(_masked_gather(builder, ppair, idx, _I64, "i64"), v32)
-            e.append(builder.shuffle_vector(q, ir.Constant(v32, ir.Undefined), evens))
-            n.append(builder.shuffle_vector(q, ir.Constant(v32, ir.Undefined), odds))
+            diff, noise = _gather_pairs(builder, ppair, idx)
+            e.append(diff)
+            n.append(noise)
         _mix_store(builder, e, n, args[3:10], pout, width, xa)
         return context.get_dummy_value()
 
@@ -249,18 +257,14 @@ def differences16(typingctx, a, b, lin, dlin, u00, u01, u02, u10, u11, u12, ta, 
         levels = builder.trunc(builder.udiv(builder.extract_value(arr[2].shape, 0), ir.Constant(_I64, 3)), _I32)
         e = []
         n = []
-        evens = ir.Constant(_VI, list(range(0, 2 * LANES, 2)))
-        odds = ir.Constant(_VI, list(range(1, 2 * LANES, 2)))
-        v32 = ir.VectorType(_F32, 2 * LANES)
         for c in range(3):
             off = _splat(builder, builder.mul(levels, ir.Constant(_I32, c)), _VI)
             ia = builder.add(chans[0][c], off)
             ib = builder.add(chans[1][c], off)
             if packed:
                 # each gathered int64 is the pair (lin, dlin): the low half (even float lane) lin, the high dlin
-                pairs = [builder.bitcast(_masked_gather(builder, plin, i, _I64, "i64"), v32) for i in (ia, ib)]
-                la, lb = (builder.shuffle_vector(q, ir.Constant(v32, ir.Undefined), evens) for q in pairs)
-                da, db = (builder.shuffle_vector(q, ir.Constant(v32, ir.Undefined), odds) for q in pairs)
+                la, da = _gather_pairs(builder, plin, ia)
+                lb, db = _gather_pairs(builder, plin, ib)
                 e.append(builder.fsub(lb, la))
                 n.append(builder.fadd(db, da))
                 continue
