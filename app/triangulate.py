@@ -78,17 +78,23 @@ def _depth_from_column_moebius(column, ca, cb, cc, w0, w_span, depth):
     (up to 5e-6 where the depth range spans only a few columns), and a column within float32 rounding of
     the range's far end may fall either side of it. A NaN column or coefficient, a zero denominator (a ray
     without a monotone column) and t outside [0, 1] (outside the depth range) all give 0."""
-    H, W = column.shape
     w0f = np.float32(w0)
     wsf = np.float32(w_span)
-    for y in range(H):
-        for x in range(W):
-            u = column[y, x]
-            n = u - ca[y, x]
-            den = cb[y, x] - cc[y, x] * u
-            inside = (((n >= 0) & (n <= den)) | ((n <= 0) & (n >= den))) & (den != 0)  # (0 / 0: no t)
-            z = den / (w0f * den + n * wsf)
-            depth[y, x] = z if inside else np.float32(0.0)
+    for y in range(column.shape[0]):
+        moebius_depth_row(column, ca, cb, cc, y, w0f, wsf, depth)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
+def moebius_depth_row(column, ca, cb, cc, y, w0f, wsf, depth):
+    """Row y of _depth_from_column_moebius (w0f, wsf: float32 w0 and w_span), for the two-shot decoder too: it
+    triangulates each row as soon as the row's columns are final, while the row is in cache."""
+    for x in range(column.shape[1]):
+        u = column[y, x]
+        n = u - ca[y, x]
+        den = cb[y, x] - cc[y, x] * u
+        inside = (((n >= 0) & (n <= den)) | ((n <= 0) & (n >= den))) & (den != 0)  # (0 / 0: no t)
+        z = den / (w0f * den + n * wsf)
+        depth[y, x] = z if inside else np.float32(0.0)
 
 
 def fit_moebius(nodes: np.ndarray) -> tuple[np.ndarray, float]:
@@ -214,6 +220,14 @@ class Triangulator:
 
     def check_size(self, width: int, height: int, where: str) -> None:
         self.calibration.check_camera_size(width, height, where)
+
+    @property
+    def moebius_geometry(self) -> tuple[np.ndarray, float, float] | None:
+        """(planes (3, H, W), w0, w_span) of the closed form that depth() uses, None where it uses the node table
+        (what the two-shot decoder takes to triangulate row by row: TwoShotDecoder.decode_depth)."""
+        if self.moebius is None:
+            return None
+        return self.moebius, self.w0, (self.nodes.shape[2] - 1) * self.dw
 
     def depth(self, column: np.ndarray) -> np.ndarray:
         """Depth Z in mm (float32, 0 = none) from a projector column map (NaN = none)."""

@@ -62,13 +62,8 @@ def run(args: argparse.Namespace) -> list[dict]:
             dec = FrameSetDecoder(scheme, meta, cal, rig.depth_range_mm)
             dec.decode(frames)  # compile / warm caches
 
-            def one(dec=dec, frames=frames):
-                res = dec.decode(frames)
-                return res.depth
-
-            def decode_only(dec=dec, frames=frames, scheme=scheme):
-                sm = dec.decoder.decode(*frames) if scheme != "graycode" else dec.decoder.decode(frames)
-                return dec.triangulator.depth(sm.column)
+            def decode_only(dec=dec, frames=frames):
+                return dec.stripes_and_depth(frames)[1]
 
             med = _median_ms(decode_only, repeats)
             a, b = frames[0], frames[-1]

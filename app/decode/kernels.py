@@ -44,9 +44,11 @@ from app.decode.simd import (
     fill8,
     gather8,
     gather8_takes,
+    prefetch_at,
     run_bounds16,
     run_bounds16_takes,
 )
+from app.triangulate import moebius_depth_row
 
 
 def _c_array(t: types.Type) -> bool:
@@ -1274,7 +1276,7 @@ def vertical_check(out_col, out_chain, n_chains, tol, min_support):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
-def _classify_row(f1, f2, y, lin, dlin, pk, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, want_thr, code):
+def _classify_row(f1, f2, y, lin, dlin, pk, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, want_thr, code, ahead):
     """twoshot_classify for row y of the frames: codes into code (W,), the unmixed differences into
     tmp[0:m] and, with want_thr, the zero-crossing sign thresholds into tmp[m:2m] (tmp is (2m + 2, W); the
     last two rows are scratch).
@@ -1296,7 +1298,7 @@ def _classify_row(f1, f2, y, lin, dlin, pk, unmix, t_abs, t_rel, t_rel_edge, blo
     fv1 = tmp[1]
     nz0 = tmp[2]
     nz1 = tmp[3]
-    _differences(f1, f2, y, lin, dlin, pk, unmix, ta, tmp)
+    _differences(f1, f2, y, lin, dlin, pk, unmix, ta, tmp, ahead)
     # block maxima of |d| at bmax[c, 1 + b], with zero guards at both ends
     bm0 = bmax[0]
     bm1 = bmax[1]
@@ -1372,17 +1374,17 @@ def _classify_row(f1, f2, y, lin, dlin, pk, unmix, t_abs, t_rel, t_rel_edge, blo
                 nz1[x] = max(te1, nz1[x])
 
 
-def _differences(f1, f2, y, lin, dlin, pk, unmix, ta, tmp):
+def _differences(f1, f2, y, lin, dlin, pk, unmix, ta, tmp, ahead):
     """Row y's unmixed differences and noise floors of the two pattern channels into tmp[0:4] (compiled only:
     the overload below picks the gathers of simd.differences16 for C-contiguous frames and tables, else the loop)."""
     raise NotImplementedError("numba only")
 
 
 @overload(_differences, jit_options={"nogil": True, "error_model": "numpy", "_nrt": False})
-def _differences_impl(f1, f2, y, lin, dlin, pk, unmix, ta, tmp):
+def _differences_impl(f1, f2, y, lin, dlin, pk, unmix, ta, tmp, ahead):
     if f1 == f2 and differences16_takes(f1, lin, dlin, unmix, ta, tmp) and _c_array(pk) and pk.dtype == types.int64:
 
-        def vector(f1, f2, y, lin, dlin, pk, unmix, ta, tmp):
+        def vector(f1, f2, y, lin, dlin, pk, unmix, ta, tmp, ahead):
             if f1.shape[2] != 3 or lin.shape[0] != 3 or dlin.shape[0] != 3:
                 _differences_loop(f1, f2, y, lin, dlin, unmix, ta, tmp)
                 return
@@ -1398,7 +1400,7 @@ def _differences_impl(f1, f2, y, lin, dlin, pk, unmix, ta, tmp):
                     x += LANES
             elif lin.shape[1] == 256 and (pk.shape[0] == PAIR_ENTRIES or pk.shape[0] == 3 * PAIR_ENTRIES):
                 # a table over 8-bit value pairs (pair_tables): one gather per channel for both frames
-                x = _pair_differences(a, b, pk, u00, u01, u02, u10, u11, u12, ta, tmp)
+                x = _pair_differences(a, b, pk, u00, u01, u02, u10, u11, u12, ta, tmp, ahead)
             if x + LANES <= W:  # (a reshape is a runtime call: only where the flat tables are read)
                 lf = lin.reshape(lin.size)
                 df = dlin.reshape(dlin.size)
@@ -1412,32 +1414,36 @@ def _differences_impl(f1, f2, y, lin, dlin, pk, unmix, ta, tmp):
 
         return vector
 
-    def scalar(f1, f2, y, lin, dlin, pk, unmix, ta, tmp):
+    def scalar(f1, f2, y, lin, dlin, pk, unmix, ta, tmp, ahead):
         _differences_loop(f1, f2, y, lin, dlin, unmix, ta, tmp)
 
     return scalar
 
 
-def _pair_differences(a, b, pairs, u00, u01, u02, u10, u11, u12, ta, tmp):
+def _pair_differences(a, b, pairs, u00, u01, u02, u10, u11, u12, ta, tmp, ahead):
     """_differences of the row's whole groups of 16 pixels from a pair table (differences16_pairs) for 8-bit
     frames; returns the pixels done (0 for other frames: the caller goes on with the other tables)."""
     raise NotImplementedError("numba only")
 
 
 @overload(_pair_differences, jit_options={"nogil": True, "error_model": "numpy", "_nrt": False})
-def _pair_differences_impl(a, b, pairs, u00, u01, u02, u10, u11, u12, ta, tmp):
+def _pair_differences_impl(a, b, pairs, u00, u01, u02, u10, u11, u12, ta, tmp, ahead):
     if a.dtype == types.uint8:
 
-        def eight_bit(a, b, pairs, u00, u01, u02, u10, u11, u12, ta, tmp):
+        def eight_bit(a, b, pairs, u00, u01, u02, u10, u11, u12, ta, tmp, ahead):
             x = 0
             while x + LANES <= a.shape[0]:
+                # the lines of the rows read later at these pixels, asked for among the gathers (which leave the
+                # memory system idle; a burst of prefetches per row stalled on the line fill buffers instead)
+                for arr, row in ahead:
+                    prefetch_at(arr, row, min(x, arr.shape[1] - 1))
                 differences16_pairs(a, b, pairs, u00, u01, u02, u10, u11, u12, ta, tmp, x)
                 x += LANES
             return x
 
         return eight_bit
 
-    def other(a, b, pairs, u00, u01, u02, u10, u11, u12, ta, tmp):
+    def other(a, b, pairs, u00, u01, u02, u10, u11, u12, ta, tmp, ahead):
         return 0
 
     return other
@@ -1633,6 +1639,10 @@ def twoshot_rows(
     col_r,
     chain_r,
     conf,
+    moebius,
+    w0,
+    w_span,
+    depth,
 ):
     """The two-shot decoder's "both" segmentation fused row by row: classify a row into one-row buffers,
     label it from its zero crossings (col_e/chain_e) and from its pixel runs (col_r/chain_r), count the
@@ -1646,6 +1656,9 @@ def twoshot_rows(
     2 = both merged ("both"); col_r/chain_r are only used by mode 2. The maps need no initialisation, and
     conf (1 where a value, else 0) is written in every mode. pk: the tables read together, built once per
     decoder (TwoShotDecoder.tables: pair_tables for 8-bit frames, else pack_tables).
+    moebius (3, H, W), w0, w_span and depth (H, W): with a depth map of the frames' size, each row is triangulated
+    as soon as its columns are final (app.triangulate.moebius_depth_row, while the row is in cache: a pass over
+    the finished column map reads it back from memory); pass a (0, 0) depth map for none.
     Returns (events chains, runs chains, events dropped, runs dropped, filled, clashes).
     """
     H, W = col_e.shape
@@ -1685,6 +1698,7 @@ def twoshot_rows(
         table, A, k, period, sw, n_copies, proj_w, lo, hi, use_range, edges_mode, min_frac, smooth,
         (col_e, chain_e, col_r, chain_r, conf), (agree_e, dis_e, npx_e, span_e, first_e),
         (agree_r, dis_r, npx_r, span_r, first_r), tol, check, min_support, cap, stats,
+        (moebius[0], moebius[1], moebius[2], np.float32(w0), np.float32(w_span), depth, depth.shape == col_e.shape),
     )  # fmt: skip
     return n_e, n_r, stats[0], stats[1], stats[2], stats[3]
 
@@ -1693,7 +1707,7 @@ def twoshot_rows(
 def _rows(
     f1, f2, lin, dlin, pk, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, code, mode, wts, trans, gap_max,
     scratch, events, table, A, k, period, sw, n_copies, proj_w, lo, hi, use_range, edges_mode, min_frac, smooth,
-    maps, counts_e, counts_r, tol, check, min_support, cap, stats,
+    maps, counts_e, counts_r, tol, check, min_support, cap, stats, geometry,
 ):  # fmt: skip
     """twoshot_rows' loop over the rows, in a kernel of its own without reference counting (the row views and
     calls of a reference-counted loop cost ~3 % of the decoder in atomic runtime calls). Returns (n_e, n_r)."""
@@ -1702,6 +1716,7 @@ def _rows(
     col_e, chain_e, col_r, chain_r, conf = maps
     agree_e, dis_e, npx_e, span_e, first_e = counts_e
     agree_r, dis_r, npx_r, span_r, first_r = counts_r
+    ca, cb, cc, w0f, wsf, depth, want_depth = geometry
     H, W = col_e.shape
     m = unmix.shape[0]
     fr = tmp[:m]
@@ -1709,13 +1724,27 @@ def _rows(
     n_e = 0
     n_r = 0
     for y in range(H):
+        # rows read later at addresses the hardware prefetcher cannot guess (the column range at the nodes) or
+        # in short passes (the triangulation of row y - 1 next time round): asked for now, while row y is decoded
         # the maps come uninitialised: each row is cleared just before it is labelled (while it is in cache)
         col_e[y] = np.nan
         chain_e[y] = -1
         if mode == 2:
             col_r[y] = np.nan
             chain_r[y] = -1
-        _classify_row(f1, f2, y, lin, dlin, pk, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, mode != 1, code)
+        # rows to fetch while row y's differences are gathered: the geometry of row y, triangulated next time
+        # round, and the column range of row y + 1, read at its stripes' nodes (at addresses no hardware
+        # prefetcher guesses); when there is no depth map or range, their (1, 1) stand-ins
+        ahead = (
+            (ca, min(y, ca.shape[0] - 1)),
+            (cb, min(y, cb.shape[0] - 1)),
+            (cc, min(y, cc.shape[0] - 1)),
+            (lo, min(y + 1, lo.shape[0] - 1)),
+            (hi, min(y + 1, hi.shape[0] - 1)),
+        )
+        _classify_row(
+            f1, f2, y, lin, dlin, pk, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, mode != 1, code, ahead
+        )
         if mode == 1:
             nr = _pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge)
         else:
@@ -1750,6 +1779,8 @@ def _rows(
                     stats[0] += _drop_chains(yy, col_e, chain_e, first_e, agree_e, dis_e, npx_e, span_e, min_support)
                 for x in range(W):
                     conf[yy, x] = np.float32(np.isfinite(col_e[yy, x]))
+            if want_depth:
+                moebius_depth_row(col_e, ca, cb, cc, yy, w0f, wsf, depth)
     return n_e, n_r
 
 

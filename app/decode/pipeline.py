@@ -87,27 +87,38 @@ class FrameSetDecoder:
         if self.calibration is not None:
             self.calibration.check_camera_size(shape[1], shape[0], where)
 
+    def stripes_and_depth(self, frames: list[np.ndarray]) -> tuple[StripeMap, np.ndarray | None]:
+        """The stripe map of a frame set (in pattern order, sizes checked by the caller) and, with a calibration,
+        its depth map: the per-frame work of decode() without the texture and the point cloud. The two-shot
+        decoder triangulates row by row in its own pass where the triangulator has the closed form."""
+        depth = None
+        if self.scheme == "two-shot":
+            geometry = self.triangulator.moebius_geometry if self.triangulator is not None else None
+            if geometry is not None:
+                sm, depth = self.decoder.decode_depth(frames[0], frames[1], geometry)
+            else:
+                sm = self.decoder.decode(frames[0], frames[1])
+        elif self.scheme == "one-shot":
+            sm = self.decoder.decode(frames[0])
+        else:
+            sm = self.decoder.decode(frames)
+        if depth is None and self.triangulator is not None:
+            depth = self.triangulator.depth(sm.column)
+        return sm, depth
+
     def decode(self, frames: list[np.ndarray], reversed_order: bool = False, where: str = "frame set") -> Result:
         """frames in pattern order (frames[p] saw pattern p); reversed_order only tells a two-shot pair's timing."""
         self.check_frames(frames, where)
-        if self.scheme == "two-shot":
-            sm = self.decoder.decode(frames[0], frames[1])
-            texture = average_frames_of(frames[0], frames[1])
-        elif self.scheme == "one-shot":
-            sm = self.decoder.decode(frames[0])
-            texture = frames[0]
-        else:
-            sm = self.decoder.decode(frames)
-            texture = frames[0]
+        sm, depth = self.stripes_and_depth(frames)
+        texture = average_frames_of(frames[0], frames[1]) if self.scheme == "two-shot" else frames[0]
         if not sm.valid.any():
             warnings.warn(
                 f"{where}: nothing decoded (dark, empty or unlit scene): empty depth map",
                 EmptyResultWarning,
                 stacklevel=2,
             )
-        depth = cloud = None
+        cloud = None
         if self.triangulator is not None:
-            depth = self.triangulator.depth(sm.column)
             cloud = self.triangulator.points(depth, texture)
         return Result(sm, depth, cloud, texture)
 

@@ -415,3 +415,34 @@ def fill8(typingctx, arr, i, value):
         return context.get_dummy_value()
 
     return sig, codegen
+
+
+@intrinsic
+def prefetch_at(typingctx, arr, y, x):
+    """Ask the caches for the 64-byte line holding arr[y, x] (2-D C-contiguous) ahead of its use, into L2
+    (llvm.prefetch, locality 2): a hint, with no effect on values and no fault at any address."""
+    if not (
+        isinstance(arr, types.Array)
+        and arr.ndim == 2
+        and arr.layout == "C"
+        and isinstance(y, types.Integer)
+        and isinstance(x, types.Integer)
+    ):
+        return None
+    sig = types.void(arr, y, x)
+
+    def codegen(context, builder, signature, args):
+        kinds = signature.args
+        a = context.make_array(kinds[0])(context, builder, args[0])
+        row = context.cast(builder, args[1], kinds[1], types.int64)
+        col = context.cast(builder, args[2], kinds[2], types.int64)
+        width = builder.extract_value(a.shape, 1)
+        i8p = ir.IntType(8).as_pointer()
+        at = builder.bitcast(builder.gep(a.data, [builder.add(builder.mul(row, width), col)]), i8p)
+        fn = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(ir.VoidType(), [i8p, _I32, _I32, _I32]), "llvm.prefetch.p0"
+        )
+        builder.call(fn, [at, ir.Constant(_I32, 0), ir.Constant(_I32, 2), ir.Constant(_I32, 1)])
+        return context.get_dummy_value()
+
+    return sig, codegen

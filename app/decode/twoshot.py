@@ -41,6 +41,11 @@ class TwoShotParams:
 
 SEGMENTATIONS = ("events", "runs", "both")  # kernels.twoshot_rows' mode numbers
 
+# a triangulator's closed-form geometry: Moebius planes (3, H, W) float32, w0, w_span (Triangulator.moebius_geometry)
+MoebiusGeometry = tuple[np.ndarray, float, float]
+NO_PLANES = np.zeros((3, 1, 1), np.float32)  # (what twoshot_rows takes for no depth map)
+NO_DEPTH = np.zeros((0, 0), np.float32)  # (no frame of 0 x 0 pixels has rows to triangulate)
+
 
 def two_shot_spec(pattern_params: dict, proj_width: int) -> WindowSpec:
     seq = [int(v) for v in pattern_params["sequence"]]
@@ -147,14 +152,38 @@ class TwoShotDecoder:
         if reversed_order:
             frame1, frame2 = frame2, frame1
         if self.mirrored:
-            return mirror_back(self._decode(mirror_image(frame1), mirror_image(frame2)))
-        return self._decode(frame1, frame2)
+            return mirror_back(self._decode(mirror_image(frame1), mirror_image(frame2))[0])
+        return self._decode(frame1, frame2)[0]
 
-    def _decode(self, frame1: np.ndarray, frame2: np.ndarray) -> StripeMap:
+    def decode_depth(
+        self, frame1: np.ndarray, frame2: np.ndarray, geometry: MoebiusGeometry, reversed_order: bool = False
+    ) -> tuple[StripeMap, np.ndarray | None]:
+        """decode(), and the depth map (float32 mm, 0 = none) from a triangulator's closed-form geometry
+        (Triangulator.moebius_geometry) in the same pass: each row is triangulated as soon as its columns are
+        final, while it is in cache; the same depths as Triangulator.depth of the stripe map. None for a rig
+        decoded mirrored (the caller triangulates the stripe map)."""
+        if reversed_order:
+            frame1, frame2 = frame2, frame1
+        if self.mirrored:
+            return mirror_back(self._decode(mirror_image(frame1), mirror_image(frame2))[0]), None
+        return self._decode(frame1, frame2, geometry)
+
+    def _decode(
+        self, frame1: np.ndarray, frame2: np.ndarray, geometry: MoebiusGeometry | None = None
+    ) -> tuple[StripeMap, np.ndarray | None]:
         """Every segmentation, fused row by row (no full-image codes or differences): the same result as
-        label() of the events or the runs, and for "both" label(runs) merged into label(events) by merge_maps."""
+        label() of the events or the runs, and for "both" label(runs) merged into label(events) by merge_maps;
+        with geometry, the depth map too (see decode_depth)."""
         self._check_pair(frame1, frame2)
         H, W = frame1.shape[:2]
+        if geometry is None:
+            planes, w0, w_span = NO_PLANES, 0.0, 0.0
+            depth = NO_DEPTH
+        else:
+            planes, w0, w_span = geometry
+            if planes.shape != (3, H, W):
+                raise InputError(f"frames are {W}x{H}, calibration camera is {planes.shape[2]}x{planes.shape[1]}")
+            depth = np.empty((H, W), np.float32)
         p, lp, spec = self.params, self.params.label, self.spec
         if p.segmentation not in SEGMENTATIONS:
             raise ValueError(f"segmentation {p.segmentation!r} is not one of {', '.join(SEGMENTATIONS)}")
@@ -203,8 +232,12 @@ class TwoShotDecoder:
             col_r,
             chain_r,
             conf,
+            planes,
+            w0,
+            w_span,
+            depth,
         )
-        return StripeMap(
+        sm = StripeMap(
             col_e,
             conf,
             stripe_width=spec.stripe_width,
@@ -222,6 +255,7 @@ class TwoShotDecoder:
                 }
             ),
         )
+        return sm, (depth if geometry is not None else None)
 
 
 def merge_maps(a: StripeMap, b: StripeMap, tol: float = 0.5) -> None:

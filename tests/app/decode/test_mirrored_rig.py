@@ -65,3 +65,17 @@ def test_one_shot_decodes_an_upside_down_projector(rig):
     assert dec.mirrored
     correct, coverage = score(dec.decode(img).column, truth)
     assert correct >= 0.99 and coverage >= 0.85
+
+
+def test_a_mirrored_two_shot_rig_is_triangulated_apart(rig):
+    """decode_depth decodes a mirrored rig's mirrored image, so it leaves the depth map to the caller (None)."""
+    cal, z, ray, tri = rig
+    ps = two_shot_patterns(cal.projector_size)
+    f1, _ = render(cal, ps.images[0], z, ray, seed=1, ambient=0.1)
+    f2, _ = render(cal, ps.images[1], z, ray, seed=2, ambient=0.1)
+    dec = TwoShotDecoder(ps.params, cal.projector_size[0], column_range=tri.column_range)
+    geometry = tri.moebius_geometry
+    assert geometry is not None
+    sm, depth = dec.decode_depth(f1, f2, geometry)
+    assert depth is None
+    np.testing.assert_array_equal(sm.column, dec.decode(f1, f2).column)

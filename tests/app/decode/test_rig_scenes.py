@@ -8,6 +8,7 @@ import pytest
 from app.bench.accuracy import score
 from app.decode.graycode import decode_graycode
 from app.decode.pipeline import FrameSetDecoder
+from app.errors import InputError
 from app.patterns import make_patterns
 
 
@@ -52,3 +53,41 @@ def test_gray_code_columns_and_rows(small_rig):
     ok = np.isfinite(rows) & gt.lit
     assert ok.sum() >= 0.98 * gt.lit.sum()
     assert np.mean(np.abs(rows[ok] - gt.row[ok]) <= 0.5) >= 0.995
+
+
+@pytest.mark.parametrize("segmentation", ["runs", "events", "both"])
+def test_two_shot_triangulated_in_the_decoding_pass_is_the_separate_pass(small_rig, segmentation):
+    """The two-shot decoder triangulates each row as soon as its columns are final (the triangulator's closed
+    form): the same stripe map as decode() and, bit for bit, the depths of Triangulator.depth."""
+    rig = small_rig("colour_panel")
+    cal = rig.calibration
+    ps = make_patterns("two-shot", cal.projector_size)
+    meta = {"scheme": "two-shot", "size": list(ps.size), "images": ps.names, **ps.params}
+    frames = [rig.render(im) for im in ps.images]
+    fsd = FrameSetDecoder("two-shot", meta, cal, rig.depth_range_mm, segmentation)
+    geometry = fsd.triangulator.moebius_geometry
+    assert geometry is not None  # (the virtual rig's projector is nearly a Moebius map)
+    sm, depth = fsd.decoder.decode_depth(frames[0], frames[1], geometry)
+    alone = fsd.decoder.decode(frames[0], frames[1])
+    np.testing.assert_array_equal(sm.column, alone.column)
+    np.testing.assert_array_equal(sm.confidence, alone.confidence)
+    np.testing.assert_array_equal(sm.chain, alone.chain)
+    want = fsd.triangulator.depth(alone.column)
+    assert (want > 0).mean() > 0.5
+    np.testing.assert_array_equal(depth, want)
+    assert np.array_equal(fsd.stripes_and_depth(frames)[1], want)
+    # reversed pair: frame 1 saw the inverse pattern
+    _, depth_r = fsd.decoder.decode_depth(frames[1], frames[0], geometry, reversed_order=True)
+    np.testing.assert_array_equal(depth_r, want)
+
+
+def test_two_shot_depth_pass_refuses_geometry_of_another_size(small_rig):
+    rig = small_rig("plane")
+    cal = rig.calibration
+    ps = make_patterns("two-shot", cal.projector_size)
+    meta = {"scheme": "two-shot", "size": list(ps.size), "images": ps.names, **ps.params}
+    frames = [rig.render(im) for im in ps.images]
+    fsd = FrameSetDecoder("two-shot", meta, cal, rig.depth_range_mm)
+    planes, w0, w_span = fsd.triangulator.moebius_geometry
+    with pytest.raises(InputError, match="calibration camera is"):
+        fsd.decoder.decode_depth(frames[0][:-8], frames[1][:-8], (planes, w0, w_span))

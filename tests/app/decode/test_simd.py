@@ -18,7 +18,8 @@ UNPACKED = np.empty(0, np.int64)  # no packed tables: the two-gather path
 @njit(cache=False)
 def _dispatched(f1, f2, lin, dlin, unmix, ta, out, pk=UNPACKED):
     for y in range(f1.shape[0]):
-        kernels._differences(f1, f2, y, lin, dlin, pk, unmix, ta, out[y])
+        ahead = ((lin, 0),)  # rows the pair path prefetches (a hint only: any row)
+        kernels._differences(f1, f2, y, lin, dlin, pk, unmix, ta, out[y], ahead)
 
 
 def _packed(lin, dlin):
@@ -165,7 +166,10 @@ def _fused_codes(f1, f2, lin, dlin, pk, unmix, t_abs, t_rel, block, code):
     bmax = np.empty((m, nb + 2), np.float32)
     tmp = np.empty((2 * m + 2, W), np.float32)
     for y in range(f1.shape[0]):
-        kernels._classify_row(f1, f2, y, lin, dlin, pk, unmix, t_abs, t_rel, t_rel, block, bmax, tmp, False, code[y])
+        ahead = ((bmax, 0),)  # (a row to prefetch: any)
+        kernels._classify_row(
+            f1, f2, y, lin, dlin, pk, unmix, t_abs, t_rel, t_rel, block, bmax, tmp, False, code[y], ahead
+        )
 
 
 @pytest.mark.parametrize("tables", ["packed", "pairs"])

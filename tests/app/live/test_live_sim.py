@@ -45,6 +45,9 @@ def test_headless_live_run_matches_ground_truth(sim_session):
     assert np.median(np.abs(pipe.latest.depth[both] - gt.depth[both])) < 0.5
     # the tags matter: the same two frames taken in the wrong order decode to wrong depth
     f0, f1 = (f.image for f in pipe.latest.frameset.frames)
+    # the live loop takes the decoder's own triangulation pass: the depths of the separate one
+    assert np.array_equal(pipe.latest.depth, processor.depth(processor.decode((f0, f1))))
+    assert fig["triangulate_ms_p50"] == 0.0
     wrong = processor.depth(processor.decode((f1, f0)))
     assert depth_agreement(wrong, gt)[0] < 0.5
     assert coverage > 0.25, coverage  # coverage targets belong to the decoder (issue 4) and its bench
