@@ -1638,7 +1638,6 @@ def twoshot_rows(
     chain_e,
     col_r,
     chain_r,
-    conf,
     moebius,
     w0,
     w_span,
@@ -1650,11 +1649,12 @@ def twoshot_rows(
 
     Same result as twoshot_classify, label_rows twice, vertical_check on both and merge_maps, without
     full-image intermediates or extra passes: chains are row segments, so a chain of row y - 1 has all
-    its vertical votes once row y is labelled. The merged map is written into col_e/chain_e and conf;
+    its vertical votes once row y is labelled. The merged map is written into col_e/chain_e;
     a value filled from the runs map gets chain id (runs chain + cap). tol <= 0 skips the vertical check.
     mode: 0 = the zero-crossing stripes alone ("events"), 1 = the pixel runs alone ("runs", into col_e/chain_e),
-    2 = both merged ("both"); col_r/chain_r are only used by mode 2. The maps need no initialisation, and
-    conf (1 where a value, else 0) is written in every mode. pk: the tables read together, built once per
+    2 = both merged ("both"); col_r/chain_r are only used by mode 2. The maps need no initialisation (a confidence
+    map is not written: it would be 1 where a value, else 0; StripeMap makes it if read). pk: the tables read
+    together, built once per
     decoder (TwoShotDecoder.tables: pair_tables for 8-bit frames, else pack_tables).
     moebius (3, H, W), w0, w_span and depth (H, W): with a depth map of the frames' size, each row is triangulated
     as soon as its columns are final (app.triangulate.moebius_depth_row, while the row is in cache: a pass over
@@ -1696,7 +1696,7 @@ def twoshot_rows(
         f1, f2, lin, dlin, pk, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, code, mode, wts, trans, gap_max,
         (rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, marks, bounds, votes), (ex, es, et, cnt, ps),
         table, A, k, period, sw, n_copies, proj_w, lo, hi, use_range, edges_mode, min_frac, smooth,
-        (col_e, chain_e, col_r, chain_r, conf), (agree_e, dis_e, npx_e, span_e, first_e),
+        (col_e, chain_e, col_r, chain_r), (agree_e, dis_e, npx_e, span_e, first_e),
         (agree_r, dis_r, npx_r, span_r, first_r), tol, check, min_support, cap, stats,
         (moebius[0], moebius[1], moebius[2], np.float32(w0), np.float32(w_span), depth, depth.shape == col_e.shape),
     )  # fmt: skip
@@ -1713,11 +1713,11 @@ def _rows(
     calls of a reference-counted loop cost ~3 % of the decoder in atomic runtime calls). Returns (n_e, n_r)."""
     rs, re, rc, link, edge, left, right, tl, pos, lab, nx, nv, sm, marks, bounds, votes = scratch
     ex, es, et, cnt, ps = events
-    col_e, chain_e, col_r, chain_r, conf = maps
+    col_e, chain_e, col_r, chain_r = maps
     agree_e, dis_e, npx_e, span_e, first_e = counts_e
     agree_r, dis_r, npx_r, span_r, first_r = counts_r
     ca, cb, cc, w0f, wsf, depth, want_depth = geometry
-    H, W = col_e.shape
+    H = col_e.shape[0]
     m = unmix.shape[0]
     fr = tmp[:m]
     tr = tmp[m:]
@@ -1771,14 +1771,10 @@ def _rows(
             if yy < 0:
                 continue
             if mode == 2:
-                _finish_row(yy, col_e, chain_e, col_r, chain_r, conf, first_e, first_r, agree_e, dis_e, npx_e,
+                _finish_row(yy, col_e, chain_e, col_r, chain_r, first_e, first_r, agree_e, dis_e, npx_e,
                             agree_r, dis_r, npx_r, check, min_support, cap, stats)  # fmt: skip
-            else:
-                # one map: only the dropped chains' pixels change; then the row's confidence is whether it has a value
-                if check:
-                    stats[0] += _drop_chains(yy, col_e, chain_e, first_e, agree_e, dis_e, npx_e, span_e, min_support)
-                for x in range(W):
-                    conf[yy, x] = np.float32(np.isfinite(col_e[yy, x]))
+            elif check:  # one map: only the dropped chains' pixels change
+                stats[0] += _drop_chains(yy, col_e, chain_e, first_e, agree_e, dis_e, npx_e, span_e, min_support)
             if want_depth:
                 moebius_depth_row(col_e, ca, cb, cc, yy, w0f, wsf, depth)
     return n_e, n_r
@@ -1845,7 +1841,7 @@ def _drop_chains(y, col, chain, first, agree, disagree, npx, span, min_support):
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _finish_row(
-    y, col_e, chain_e, col_r, chain_r, conf, first_e, first_r, agree_e, dis_e, npx_e, agree_r, dis_r, npx_r, check,
+    y, col_e, chain_e, col_r, chain_r, first_e, first_r, agree_e, dis_e, npx_e, agree_r, dis_r, npx_r, check,
     min_support, cap, stats,
 ):  # fmt: skip
     """Row y has all its vertical votes: drop its unconfirmed chains, then merge runs into events (see merge_maps)."""
@@ -1869,20 +1865,14 @@ def _finish_row(
             if ok_r and abs(col_e[y, x] - col_r[y, x]) > 0.5:
                 col_e[y, x] = np.nan
                 chain_e[y, x] = -1
-                conf[y, x] = 0.0
                 stats[3] += 1
-            else:
-                conf[y, x] = 1.0
         elif ok_r:
             col_e[y, x] = col_r[y, x]
             chain_e[y, x] = cr + cap
-            conf[y, x] = 1.0
             stats[2] += 1
-        else:
-            if ce >= 0:
-                col_e[y, x] = np.nan
-                chain_e[y, x] = -1
-            conf[y, x] = 0.0
+        elif ce >= 0:
+            col_e[y, x] = np.nan
+            chain_e[y, x] = -1
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)

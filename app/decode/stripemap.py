@@ -17,12 +17,23 @@ class StripeMap:
     """
 
     column: np.ndarray  # (H, W) float32, NaN where no value
-    confidence: np.ndarray  # (H, W) float32
+    # (H, W) float32; None: 1 where a value, else 0 (what every decoder here gives), made when first read
+    _confidence: np.ndarray | None = field(default=None, repr=False)
     stripe_width: int = 1
     period: int = 0  # stripes in one period of the sequence (0 = not periodic, e.g. Gray code)
     copy_known: bool = True  # False when no geometry was given to choose between repeated copies
     chain: np.ndarray | None = field(default=None, repr=False)
     info: dict = field(default_factory=dict)  # counts for logs and benches
+
+    @property
+    def confidence(self) -> np.ndarray:
+        if self._confidence is None:
+            self._confidence = np.isfinite(self.column).astype(np.float32)
+        return self._confidence
+
+    @confidence.setter
+    def confidence(self, value: np.ndarray) -> None:
+        self._confidence = value
 
     @property
     def valid(self) -> np.ndarray:

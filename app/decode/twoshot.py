@@ -193,7 +193,6 @@ class TwoShotDecoder:
         # all written by the kernel, row by row
         col_e = np.empty((H, W), np.float32)
         chain_e = np.empty((H, W), np.int32)
-        conf = np.empty((H, W), np.float32)
         both = p.segmentation == "both"
         # the second map and the merge are used by "both" only
         col_r = np.empty((H, W), np.float32) if both else EMPTY_RANGE
@@ -231,7 +230,6 @@ class TwoShotDecoder:
             chain_e,
             col_r,
             chain_r,
-            conf,
             planes,
             w0,
             w_span,
@@ -239,7 +237,7 @@ class TwoShotDecoder:
         )
         sm = StripeMap(
             col_e,
-            conf,
+            None,  # (confidence: 1 where a value, made when read)
             stripe_width=spec.stripe_width,
             period=spec.period,
             copy_known=use_range or spec.n_copies == 1,

@@ -9,6 +9,7 @@ import pytest
 from synth import make_calibration, plane_depth, render
 
 from app.decode import reference
+from app.decode.stripemap import StripeMap
 from app.decode.twoshot import TwoShotDecoder, TwoShotParams, merge_maps
 from app.decode.windows import label
 from app.patterns import two_shot_patterns
@@ -163,3 +164,13 @@ def test_fused_path_equals_the_two_labellings_merged(scene):
     runs = dec.decode(f1, f2)
     np.testing.assert_array_equal(runs.column, b.column)
     assert runs.info == {"chains": b.info["chains"], "chains_dropped": b.info["chains_dropped"]}
+
+
+def test_a_stripe_map_without_confidence_makes_it_from_its_values():
+    """The two-shot decoder leaves the confidence map out (it is 1 where a value, else 0): made when read."""
+    col = np.array([[np.nan, 3.5], [7.25, np.nan]], np.float32)
+    sm = StripeMap(col, None)
+    np.testing.assert_array_equal(sm.confidence, [[0, 1], [1, 0]])
+    assert sm.confidence.dtype == np.float32 and sm.confidence is sm.confidence
+    sm.confidence = np.full((2, 2), 0.5, np.float32)
+    assert float(sm.confidence[0, 0]) == 0.5
