@@ -887,6 +887,7 @@ def _label_row(
     lines (float32 pairs) and row 2 the pixels' lines (see _segment_values). marks (3, n) int8 and bounds (2, n)
     int64: the chains' ends."""
     W = out_col.shape[1]
+    cy = y % out_chain.shape[0]  # out_chain may hold the last rows only (a ring: see twoshot_rows)
     row_first = n_chains  # this row's first chain
     if nr < k:
         return n_chains
@@ -1077,6 +1078,7 @@ def _label_row(
         if n_chains < npx.shape[0]:
             # the row above is read at y - 1 >= 0 and its votes masked at y = 0 (one loop, vectorised)
             up = max(y - 1, 0)
+            cu = up % out_chain.shape[0]
             above = y > 0
             tol32 = np.float32(tol)
             # the zero-crossing runs of neighbouring stripes share a pixel when the crossing falls exactly on
@@ -1086,7 +1088,7 @@ def _label_row(
             shared_col = np.float32(0.0)
             if n_chains > row_first and n_chains - 1 < span.shape[0]:
                 pe = span[n_chains - 1, 1]
-                if pe >= xa and out_chain[y, pe] == n_chains - 1:
+                if pe >= xa and out_chain[cy, pe] == n_chains - 1:
                     shared = pe
                     shared_col = out_col[y, pe]
             n = 0
@@ -1097,18 +1099,18 @@ def _label_row(
                 v32, ok = _column_at(q, line, lo_v, hi_v, use_range, lo, hi, y, xx)
                 if ok:
                     out_col[y, xx] = v32
-                    out_chain[y, xx] = n_chains
+                    out_chain[cy, xx] = n_chains
                 n += ok
-                pair = ok & above & (out_chain[up, xx] >= 0)
+                pair = ok & above & (out_chain[cu, xx] >= 0)
                 close = abs(out_col[up, xx] - v32) <= tol32
                 ag += pair & close
                 dg += pair & (not close)
             npx[n_chains] = n
             agree[n_chains] = ag
             disagree[n_chains] = dg
-            if shared >= 0 and out_chain[y, shared] == n_chains:
+            if shared >= 0 and out_chain[cy, shared] == n_chains:
                 npx[n_chains - 1] -= 1
-                if above and out_chain[up, shared] >= 0:
+                if above and out_chain[cu, shared] >= 0:
                     if abs(out_col[up, shared] - shared_col) <= tol32:
                         agree[n_chains - 1] -= 1
                     else:
@@ -1119,7 +1121,7 @@ def _label_row(
                 v, ok = _column_at(q, line, lo_v, hi_v, use_range, lo, hi, y, xx)
                 if ok:
                     out_col[y, xx] = v
-                    out_chain[y, xx] = n_chains
+                    out_chain[cy, xx] = n_chains
         if n_chains < span.shape[0]:
             span[n_chains, 0] = xa
             span[n_chains, 1] = xb
@@ -1649,7 +1651,8 @@ def twoshot_rows(
 
     Same result as twoshot_classify, label_rows twice, vertical_check on both and merge_maps, without
     full-image intermediates or extra passes: chains are row segments, so a chain of row y - 1 has all
-    its vertical votes once row y is labelled. The merged map is written into col_e/chain_e;
+    its vertical votes once row y is labelled. The merged map is written into col_e/chain_e; the chain maps may
+    hold the last R >= 2 rows only (row y at y % R: the rows the vertical check compares), the column maps all;
     a value filled from the runs map gets chain id (runs chain + cap). tol <= 0 skips the vertical check.
     mode: 0 = the zero-crossing stripes alone ("events"), 1 = the pixel runs alone ("runs", into col_e/chain_e),
     2 = both merged ("both"); col_r/chain_r are only used by mode 2. The maps need no initialisation (a confidence
@@ -1728,10 +1731,10 @@ def _rows(
         # in short passes (the triangulation of row y - 1 next time round): asked for now, while row y is decoded
         # the maps come uninitialised: each row is cleared just before it is labelled (while it is in cache)
         col_e[y] = np.nan
-        chain_e[y] = -1
+        chain_e[y % chain_e.shape[0]] = -1
         if mode == 2:
             col_r[y] = np.nan
-            chain_r[y] = -1
+            chain_r[y % chain_r.shape[0]] = -1
         # rows to fetch while row y's differences are gathered: the geometry of row y, triangulated next time
         # round, and the column range of row y + 1, read at its stripes' nodes (at addresses no hardware
         # prefetcher guesses); when there is no depth map or range, their (1, 1) stand-ins
@@ -1811,13 +1814,15 @@ def _row_votes(col, chain, y, tol, agree, disagree, npx, first, span):
     increment of a per-chain counter chains every pixel of a chain through memory."""
     if y == 0:
         return
+    cy = y % chain.shape[0]  # (chain may hold the last rows only)
+    cu = (y - 1) % chain.shape[0]
     tol32 = np.float32(tol)  # compared with float32 differences without a conversion per pixel
     for c in range(first[y - 1], first[y]):
         ag = 0
         dg = 0
         for xi in range(span[c, 0], span[c, 1] + 1):
             x = np.uint64(xi)  # unsigned: numba adds no negative-index fix per pixel (it made the loads gathers)
-            pair = (chain[y - 1, x] == c) & (chain[y, x] >= 0)
+            pair = (chain[cu, x] == c) & (chain[cy, x] >= 0)
             close = abs(col[y - 1, x] - col[y, x]) <= tol32
             ag += pair & close
             dg += pair & (not close)
@@ -1828,14 +1833,15 @@ def _row_votes(col, chain, y, tol, agree, disagree, npx, first, span):
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _drop_chains(y, col, chain, first, agree, disagree, npx, span, min_support):
     """vertical_check's verdict on the chains of row y, which have all their votes; returns how many it dropped."""
+    cy = y % chain.shape[0]  # (chain may hold the last rows only)
     dropped = 0
     for c in range(first[y], first[y + 1]):
         if _unconfirmed(agree[c], disagree[c], npx[c], min_support):
             dropped += 1
             for x in range(span[c, 0], span[c, 1] + 1):
-                if chain[y, x] == c:
+                if chain[cy, x] == c:
                     col[y, x] = np.nan
-                    chain[y, x] = -1
+                    chain[cy, x] = -1
     return dropped
 
 
@@ -1846,6 +1852,8 @@ def _finish_row(
 ):  # fmt: skip
     """Row y has all its vertical votes: drop its unconfirmed chains, then merge runs into events (see merge_maps)."""
     W = col_e.shape[1]
+    ce_y = y % chain_e.shape[0]  # (the chain maps may hold the last rows only)
+    cr_y = y % chain_r.shape[0]
     if check:
         # a chain is dropped by marking its pixel count negative (read below)
         for c in range(first_e[y], first_e[y + 1]):
@@ -1857,22 +1865,22 @@ def _finish_row(
                 npx_r[c] = -1
                 stats[1] += 1
     for x in range(W):
-        ce = chain_e[y, x]
-        cr = chain_r[y, x]
+        ce = chain_e[ce_y, x]
+        cr = chain_r[cr_y, x]
         ok_e = ce >= 0 and npx_e[ce] >= 0
         ok_r = cr >= 0 and npx_r[cr] >= 0
         if ok_e:
             if ok_r and abs(col_e[y, x] - col_r[y, x]) > 0.5:
                 col_e[y, x] = np.nan
-                chain_e[y, x] = -1
+                chain_e[ce_y, x] = -1
                 stats[3] += 1
         elif ok_r:
             col_e[y, x] = col_r[y, x]
-            chain_e[y, x] = cr + cap
+            chain_e[ce_y, x] = cr + cap
             stats[2] += 1
         elif ce >= 0:
             col_e[y, x] = np.nan
-            chain_e[y, x] = -1
+            chain_e[ce_y, x] = -1
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)

@@ -192,11 +192,13 @@ class TwoShotDecoder:
         lo, hi = self.column_range if use_range else (EMPTY_RANGE, EMPTY_RANGE)
         # all written by the kernel, row by row
         col_e = np.empty((H, W), np.float32)
-        chain_e = np.empty((H, W), np.int32)
+        # the chain maps hold the last two rows only (the rows the vertical check compares): the fused path outputs
+        # no chain map (a full one was a fourth map written per frame, read by nothing in the product)
+        chain_e = np.empty((2, W), np.int32)
         both = p.segmentation == "both"
         # the second map and the merge are used by "both" only
         col_r = np.empty((H, W), np.float32) if both else EMPTY_RANGE
-        chain_r = np.empty((H, W), np.int32) if both else np.full((1, 1), -1, np.int32)
+        chain_r = np.empty((2, W), np.int32) if both else np.full((1, 1), -1, np.int32)
         n_e, n_r, drop_e, drop_r, filled, clashes = kernels.twoshot_rows(
             frame1,
             frame2,
@@ -241,7 +243,7 @@ class TwoShotDecoder:
             stripe_width=spec.stripe_width,
             period=spec.period,
             copy_known=use_range or spec.n_copies == 1,
-            chain=chain_e,
+            chain=None,
             info=(
                 {"chains": int(n_e), "chains_dropped": int(drop_e)}
                 if not both

@@ -71,7 +71,7 @@ def test_two_shot_triangulated_in_the_decoding_pass_is_the_separate_pass(small_r
     alone = fsd.decoder.decode(frames[0], frames[1])
     np.testing.assert_array_equal(sm.column, alone.column)
     np.testing.assert_array_equal(sm.confidence, alone.confidence)
-    np.testing.assert_array_equal(sm.chain, alone.chain)
+    assert sm.chain is None and alone.chain is None  # (the fused path keeps only its last two rows of chains)
     want = fsd.triangulator.depth(alone.column)
     assert (want > 0).mean() > 0.5
     np.testing.assert_array_equal(depth, want)
