@@ -41,7 +41,8 @@ WORKERS_HELP = f"decode threads (default {DECODE_WORKERS}: up to 2, as many as t
 
 
 class Processor:
-    """FrameSet -> (StripeMap, depth): issue 4's FrameSetDecoder, built once, with the two stages timed apart."""
+    """FrameSet -> (StripeMap, depth): issue 4's FrameSetDecoder, built once. Decoding and triangulation are timed
+    apart, except where the two-shot decoder triangulates row by row in its own pass (triangulates_in_decode)."""
 
     def __init__(
         self,
@@ -59,13 +60,16 @@ class Processor:
         self.frameset_decoder = FrameSetDecoder(patterns.scheme, meta, calibration, depth_range_mm, segmentation)
         self.triangulator = self.frameset_decoder.triangulator
         self.decoder = self.frameset_decoder.decoder
+        # (a mirrored rig's decoder leaves the depth map to a separate pass: TwoShotDecoder.decode_depth)
+        self.triangulates_in_decode = (
+            self.scheme == "two-shot" and self.triangulator.moebius_geometry is not None and not self.decoder.mirrored
+        )
 
     def decode_depth(self, images: tuple[np.ndarray, ...]) -> tuple[StripeMap, np.ndarray, float]:
         """images[p] saw pattern p: the stripe map, the depth map and the time of a separate triangulation pass in
         ms (0 where the two-shot decoder triangulates row by row in its own pass: FrameSetDecoder.stripes_and_depth)."""
-        fsd = self.frameset_decoder
-        if self.scheme == "two-shot" and self.triangulator.moebius_geometry is not None:
-            stripes, depth = fsd.stripes_and_depth(list(images))
+        if self.triangulates_in_decode:
+            stripes, depth = self.frameset_decoder.stripes_and_depth(list(images))
             return stripes, depth, 0.0
         stripes = self.decode(images)
         t0 = time.perf_counter()
@@ -376,6 +380,7 @@ class LivePipeline:
             "latency_ms_p50": percentile(st.latency_ms, 50),
             "latency_ms_p95": percentile(st.latency_ms, 95),
             "decode_ms_p50": percentile(st.decode_ms, 50),
+            "triangulated_in_decode": self.processor is not None and self.processor.triangulates_in_decode,
             "triangulate_ms_p50": percentile(st.triangulate_ms, 50),
             "grab_ms_p50": percentile(st.grab_ms, 50),
             "dropped": cap.dropped,

@@ -381,7 +381,8 @@ def print_figures(fig: dict) -> None:
     )
     print(
         f"per stage (median): grab+check {fig['grab_ms_p50']:.1f} ms, decode {fig['decode_ms_p50']:.1f} ms, "
-        f"triangulate {fig['triangulate_ms_p50']:.1f} ms (two-shot: in the decode pass)"
+        f"triangulate {fig['triangulate_ms_p50']:.1f} ms"
+        + (" (in the decode pass)" if fig.get("triangulated_in_decode") else "")
     )
     print(
         f"dropped {cap['dropped']}  mispaired (refused) {cap['refused']}: duplicates {cap['duplicates']}, "

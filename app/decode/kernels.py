@@ -1657,14 +1657,18 @@ def twoshot_rows(
     mode: 0 = the zero-crossing stripes alone ("events"), 1 = the pixel runs alone ("runs", into col_e/chain_e),
     2 = both merged ("both"); col_r/chain_r are only used by mode 2. The maps need no initialisation (a confidence
     map is not written: it would be 1 where a value, else 0; StripeMap makes it if read). pk: the tables read
-    together, built once per
-    decoder (TwoShotDecoder.tables: pair_tables for 8-bit frames, else pack_tables).
+    together, built once per decoder (TwoShotDecoder.tables: pair_tables for 8-bit frames, else pack_tables).
     moebius (3, H, W), w0, w_span and depth (H, W): with a depth map of the frames' size, each row is triangulated
     as soon as its columns are final (app.triangulate.moebius_depth_row, while the row is in cache: a pass over
     the finished column map reads it back from memory); pass a (0, 0) depth map for none.
     Returns (events chains, runs chains, events dropped, runs dropped, filled, clashes).
     """
     H, W = col_e.shape
+    if chain_e.shape[0] < 2 or chain_e.shape[1] != W or (mode == 2 and (chain_r.shape[0] < 2 or chain_r.shape[1] != W)):
+        raise ValueError("twoshot_rows: a chain map needs the frames' width and at least two rows")
+    want_depth = depth.shape == col_e.shape
+    if want_depth and (moebius.shape[1] != H or moebius.shape[2] != W):
+        raise ValueError("twoshot_rows: the Moebius planes differ in size from the frames")
     m = unmix.shape[0]
     A = link_ok.shape[0]
     nb = (W + block - 1) // block
@@ -1701,7 +1705,7 @@ def twoshot_rows(
         table, A, k, period, sw, n_copies, proj_w, lo, hi, use_range, edges_mode, min_frac, smooth,
         (col_e, chain_e, col_r, chain_r), (agree_e, dis_e, npx_e, span_e, first_e),
         (agree_r, dis_r, npx_r, span_r, first_r), tol, check, min_support, cap, stats,
-        (moebius[0], moebius[1], moebius[2], np.float32(w0), np.float32(w_span), depth, depth.shape == col_e.shape),
+        (moebius[0], moebius[1], moebius[2], np.float32(w0), np.float32(w_span), depth, want_depth),
     )  # fmt: skip
     return n_e, n_r, stats[0], stats[1], stats[2], stats[3]
 
@@ -1727,8 +1731,6 @@ def _rows(
     n_e = 0
     n_r = 0
     for y in range(H):
-        # rows read later at addresses the hardware prefetcher cannot guess (the column range at the nodes) or
-        # in short passes (the triangulation of row y - 1 next time round): asked for now, while row y is decoded
         # the maps come uninitialised: each row is cleared just before it is labelled (while it is in cache)
         col_e[y] = np.nan
         chain_e[y % chain_e.shape[0]] = -1

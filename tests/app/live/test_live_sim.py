@@ -47,7 +47,7 @@ def test_headless_live_run_matches_ground_truth(sim_session):
     f0, f1 = (f.image for f in pipe.latest.frameset.frames)
     # the live loop takes the decoder's own triangulation pass: the depths of the separate one
     assert np.array_equal(pipe.latest.depth, processor.depth(processor.decode((f0, f1))))
-    assert fig["triangulate_ms_p50"] == 0.0
+    assert fig["triangulate_ms_p50"] == 0.0 and fig["triangulated_in_decode"]
     wrong = processor.depth(processor.decode((f1, f0)))
     assert depth_agreement(wrong, gt)[0] < 0.5
     assert coverage > 0.25, coverage  # coverage targets belong to the decoder (issue 4) and its bench
