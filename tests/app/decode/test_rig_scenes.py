@@ -56,16 +56,20 @@ def test_gray_code_columns_and_rows(small_rig):
     assert np.mean(np.abs(rows[ok] - gt.row[ok]) <= 0.5) >= 0.995
 
 
-@pytest.mark.parametrize("segmentation", ["runs", "events", "both"])
-def test_two_shot_triangulated_in_the_decoding_pass_is_the_separate_pass(small_rig, segmentation):
-    """The two-shot decoder triangulates each row as soon as its columns are final (the triangulator's closed
-    form): the same stripe map as decode() and, bit for bit, the depths of Triangulator.depth."""
-    rig = small_rig("colour_panel")
+def _two_shot(rig, segmentation=None):
+    """A FrameSetDecoder of the rig's calibration and depth range, the rig's two-shot frames, the patterns' params."""
     cal = rig.calibration
     ps = make_patterns("two-shot", cal.projector_size)
     meta = {"scheme": "two-shot", "size": list(ps.size), "images": ps.names, **ps.params}
     frames = [rig.render(im) for im in ps.images]
-    fsd = FrameSetDecoder("two-shot", meta, cal, rig.depth_range_mm, segmentation)
+    return FrameSetDecoder("two-shot", meta, cal, rig.depth_range_mm, segmentation), frames, ps.params
+
+
+@pytest.mark.parametrize("segmentation", ["runs", "events", "both"])
+def test_two_shot_triangulated_in_the_decoding_pass_is_the_separate_pass(small_rig, segmentation):
+    """The two-shot decoder triangulates each row as soon as its columns are final (the triangulator's closed
+    form): the same stripe map as decode() and, bit for bit, the depths of Triangulator.depth."""
+    fsd, frames, _ = _two_shot(small_rig("colour_panel"), segmentation)
     geometry = fsd.triangulator.moebius_geometry
     assert geometry is not None  # (the virtual rig's projector is nearly a Moebius map)
     sm, depth = fsd.decoder.decode_depth(frames[0], frames[1], geometry)
@@ -82,12 +86,7 @@ def test_two_shot_triangulated_in_the_decoding_pass_is_the_separate_pass(small_r
 
 
 def test_two_shot_depth_pass_refuses_geometry_of_another_size(small_rig):
-    rig = small_rig("plane")
-    cal = rig.calibration
-    ps = make_patterns("two-shot", cal.projector_size)
-    meta = {"scheme": "two-shot", "size": list(ps.size), "images": ps.names, **ps.params}
-    frames = [rig.render(im) for im in ps.images]
-    fsd = FrameSetDecoder("two-shot", meta, cal, rig.depth_range_mm)
+    fsd, frames, _ = _two_shot(small_rig("plane"))
     planes, w0, w_span = fsd.triangulator.moebius_geometry
     with pytest.raises(InputError, match="calibration camera is"):
         fsd.decoder.decode_depth(frames[0][:-8], frames[1][:-8], (planes, w0, w_span))
@@ -96,15 +95,10 @@ def test_two_shot_depth_pass_refuses_geometry_of_another_size(small_rig):
 def test_two_shot_takes_a_float64_column_range(small_rig):
     """The column range is read by the row kernel as float32 C arrays: a float64 or Fortran-ordered range (what
     a caller may build with numpy) is converted, not a compile error."""
-    rig = small_rig("plane")
-    cal = rig.calibration
-    ps = make_patterns("two-shot", cal.projector_size)
-    meta = {"scheme": "two-shot", "size": list(ps.size), "images": ps.names, **ps.params}
-    frames = [rig.render(im) for im in ps.images]
-    fsd = FrameSetDecoder("two-shot", meta, cal, rig.depth_range_mm)
+    fsd, frames, params = _two_shot(small_rig("plane"))
     lo, hi = fsd.triangulator.column_range
     want = fsd.decoder.decode(frames[0], frames[1]).column
-    d = fsd.decoder
+    cal = fsd.calibration
     ranges = (lo.astype(np.float64), np.asfortranarray(hi))
-    dec = TwoShotDecoder(ps.params, cal.projector_size[0], cal.color_mixing, ranges, camera_gamma=d.camera_gamma)
+    dec = TwoShotDecoder(params, cal.projector_size[0], cal.color_mixing, ranges, camera_gamma=fsd.decoder.camera_gamma)
     np.testing.assert_array_equal(dec.decode(frames[0], frames[1]).column, want)
