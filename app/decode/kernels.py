@@ -1281,7 +1281,7 @@ def vertical_check(out_col, out_chain, n_chains, tol, min_support):
 def _classify_row(f1, f2, y, lin, dlin, pk, unmix, t_abs, t_rel, t_rel_edge, block, bmax, tmp, want_thr, code, ahead):
     """twoshot_classify for row y of the frames: codes into code (W,), the unmixed differences into
     tmp[0:m] and, with want_thr, the zero-crossing sign thresholds into tmp[m:2m] (tmp is (2m + 2, W); the
-    last two rows are scratch).
+    last two rows are scratch). ahead: the rows to prefetch meanwhile (see _differences).
 
     Same arithmetic in three simple loops: differences and noise floors into the contiguous rows of
     tmp, block maxima, then thresholds. Coefficients live in locals and each loop writes one kind of
@@ -1378,7 +1378,9 @@ def _classify_row(f1, f2, y, lin, dlin, pk, unmix, t_abs, t_rel, t_rel_edge, blo
 
 def _differences(f1, f2, y, lin, dlin, pk, unmix, ta, tmp, ahead):
     """Row y's unmixed differences and noise floors of the two pattern channels into tmp[0:4] (compiled only:
-    the overload below picks the gathers of simd.differences16 for C-contiguous frames and tables, else the loop)."""
+    the overload below picks the gathers of simd.differences16 for C-contiguous frames and tables, else the loop).
+    ahead: (2-D float32 C array, row) pairs whose rows the pair tables' loop asks the caches for, a line per 16
+    pixels (simd.prefetch_at: a hint, no effect on values)."""
     raise NotImplementedError("numba only")
 
 
@@ -1424,7 +1426,8 @@ def _differences_impl(f1, f2, y, lin, dlin, pk, unmix, ta, tmp, ahead):
 
 def _pair_differences(a, b, pairs, u00, u01, u02, u10, u11, u12, ta, tmp, ahead):
     """_differences of the row's whole groups of 16 pixels from a pair table (differences16_pairs) for 8-bit
-    frames; returns the pixels done (0 for other frames: the caller goes on with the other tables)."""
+    frames, with ahead's prefetches; returns the pixels done (0 for other frames: the caller goes on with the
+    other tables)."""
     raise NotImplementedError("numba only")
 
 
