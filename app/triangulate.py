@@ -236,10 +236,10 @@ class Triangulator:
             raise InputError(f"column map is {column.shape[1]}x{column.shape[0]}, calibration camera is {w}x{h}")
         out = np.empty((h, w), np.float32)
         column = np.ascontiguousarray(column, np.float32)
-        if self.moebius is not None:
-            K = self.nodes.shape[2]
-            ca, cb, cc = self.moebius
-            _depth_from_column_moebius(column, ca, cb, cc, self.w0, (K - 1) * self.dw, out)
+        geometry = self.moebius_geometry
+        if geometry is not None:
+            (ca, cb, cc), w0, w_span = geometry
+            _depth_from_column_moebius(column, ca, cb, cc, w0, w_span, out)
         else:
             _depth_from_column(column, self.nodes, self.w0, self.dw, out)
         return out
