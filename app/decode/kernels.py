@@ -245,8 +245,27 @@ def _transitions(wts, link_ok, n):
                 if wts[a, b, c] != 0:
                     more[t] = True
             info[t] = np.int64(ok[t]) | (np.int64(more[t]) << 1) | (ch[t] << 2)
+    # the two-shot table is a rule on the codes' bits (see _bit_links): the link pass computes it, no lookups
+    bits = A == 1 << C
+    for a in range(A):
+        for b in range(A):
+            t = a * A + b
+            wb, cb, okb = _bit_link(a, b)
+            bits &= (ok[t] == okb) & (ch[t] == cb) & (w[t] == wb) & (not more[t])
     work = (np.empty((5, n), np.int64), np.empty((3, n), np.float32), np.empty(A * A, np.int64), np.empty(n, np.int8))
-    return ok, ch, w, more, info, work[0], work[1], work[2], work[3]
+    return ok, ch, w, more, info, work[0], work[1], work[2], work[3], bits
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _bit_link(a, b):
+    """(weight, channel, ok) of the transition from code a to code b when codes are bit patterns, one bit per
+    channel, and linked stripes differ in one bit c (two_shot_spec): weight -1 if a has bit c, else +1; for
+    other pairs weight 0 and, as _transitions finds for an all-zero weight row, the last channel (two channels)."""
+    d = a ^ b
+    ok = (d != 0) & ((d & (d - 1)) == 0)
+    c = (d >> 1) | (d == 0)  # (two channels: d = 1 -> 0, 2 -> 1; 0 and 3 -> 1)
+    wt = np.float32(1.0) - np.float32(2.0) * np.float32((a >> c) & 1)
+    return (wt if ok else np.float32(0.0)), c, ok
 
 
 def _link_pass(nr, fr, A, trans, gap_max, rs, re, rc, link, edge, slow):
@@ -272,10 +291,18 @@ def _link_pass_impl(nr, fr, A, trans, gap_max, rs, re, rc, link, edge, slow):
             # run was the loop's costliest instruction)
             for t in range(info.shape[0]):
                 info_w[t] = (info[t] & 3) | (((info[t] >> 2) * W) << 2)
-            for j in range(n):
-                tt[j] = rc[j] * A + rc[j + 1]
-            _gather(inf, info_w, tt, n)
-            _gather(wj, t_w, tt, n)
+            if trans[9]:
+                # two-shot codes: the transition's weight, channel and link from the codes' bits (see _bit_link;
+                # two table gathers per eight runs were a third of the pass)
+                for j in range(n):
+                    wb, cb, okb = _bit_link(rc[j], rc[j + 1])
+                    wj[j] = wb
+                    inf[j] = np.int64(okb) | ((cb * W) << 2)
+            else:
+                for j in range(n):
+                    tt[j] = rc[j] * A + rc[j + 1]
+                _gather(inf, info_w, tt, n)
+                _gather(wj, t_w, tt, n)
             for j in range(n):
                 row = inf[j] >> 2
                 a0[j] = row + re[j]
