@@ -245,7 +245,7 @@ def _transitions(wts, link_ok, n):
                 if wts[a, b, c] != 0:
                     more[t] = True
             info[t] = np.int64(ok[t]) | (np.int64(more[t]) << 1) | (ch[t] << 2)
-    # the two-shot table is a rule on the codes' bits (see _bit_links): the link pass computes it, no lookups
+    # the two-shot table is a rule on the codes' bits (see _bit_link): the link pass computes it, no lookups
     bits = A == 1 << C
     for a in range(A):
         for b in range(A):
