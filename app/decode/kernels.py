@@ -489,9 +489,11 @@ def _edge_search(s, w, xa, xb, mid):
         xx = xa + step
         s0 = s1
         s1 = 0.0 + w * s[min(xx + 1, xb)]
-        xz = xx + s0 / (s0 - s1)
+        cross = (xx < xb) & (s0 > 0) & (s1 <= 0)
+        # (a crossing's s0 - s1 is > 0; other steps divide by 1, not by a possible 0: no 0 / 0 under any error model)
+        xz = xx + s0 / ((s0 - s1) if cross else 1.0)
         d = abs(xz - mid)
-        better = (xx < xb) & (s0 > 0) & (s1 <= 0) & (d < bestd)
+        better = cross & (d < bestd)
         best = xz if better else best
         bestd = d if better else bestd
     return best
@@ -520,15 +522,15 @@ def _pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge):
         xa = re[j] - 1 if re[j] - 1 >= rs[j] else re[j]
         xb = rs[j + 1] + 1 if rs[j + 1] + 1 <= re[j + 1] else rs[j + 1]
         mid = 0.5 * (re[j] + rs[j + 1])
-        best = mid
-        bestd = 1e9
         # two-shot: linked stripes differ in one channel (link_ok), so the edge signal is that channel's d,
         # signed; one-shot: the difference of the two stripes' colours
-        a = rc[j]
-        b = rc[j + 1]
         if not t_more[t] and xb - xa <= SLOW_STEPS:
             edge[j] = _edge_search(fr[cs], w, xa, xb, mid)
             continue
+        best = mid
+        bestd = 1e9
+        a = rc[j]
+        b = rc[j + 1]
         s1 = 0.0 + w * fr[cs, xa]
         if t_more[t]:
             for c in range(cs + 1, C):
