@@ -224,7 +224,8 @@ def _transitions(wts, link_ok, n):
     """Per code transition t = a * A + b: whether it can link two runs, the first channel of its edge signal
     (wts[a, b]), that channel's weight, whether more channels weigh in (one-shot), and the three packed into
     one int64 (ok | more << 1 | channel << 2) for the gathered link pass; then that pass's work rows for rows
-    of up to n runs (int64 (5, n), float32 (3, n), int64 (A * A,) and int8 (n,)). Built once per frame."""
+    of up to n runs (int64 (5, n), float32 (3, n), int64 (A * A,) and int8 (n,)), and whether the table is
+    _bit_link's rule (the pass then computes it). Built once per frame."""
     A = wts.shape[0]
     C = wts.shape[2]
     ok = np.zeros(A * A, np.bool_)
