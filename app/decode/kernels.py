@@ -288,10 +288,8 @@ def _link_pass_impl(nr, fr, A, trans, gap_max, rs, re, rc, link, edge, slow):
             n = nr - 1
             tt, inf, a0, a1 = iw[0], iw[1], iw[2], iw[3]
             wj, f0, f1 = fw[0], fw[1], fw[2]
-            # the channel's row offset in the flat differences packed in place of the channel (a multiply per
-            # run was the loop's costliest instruction)
-            for t in range(info.shape[0]):
-                info_w[t] = (info[t] & 3) | (((info[t] >> 2) * W) << 2)
+            # inf[j]: link and more bits, with the channel's row offset in the flat differences packed in place of
+            # the channel (a multiply per run was the loop's costliest instruction)
             if trans[9]:
                 # two-shot codes: the transition's weight, channel and link from the codes' bits (see _bit_link;
                 # two table gathers per eight runs were a third of the pass)
@@ -300,6 +298,8 @@ def _link_pass_impl(nr, fr, A, trans, gap_max, rs, re, rc, link, edge, slow):
                     wj[j] = wb
                     inf[j] = np.int64(okb) | ((cb * W) << 2)
             else:
+                for t in range(info.shape[0]):
+                    info_w[t] = (info[t] & 3) | (((info[t] >> 2) * W) << 2)
                 for j in range(n):
                     tt[j] = rc[j] * A + rc[j + 1]
                 _gather(inf, info_w, tt, n)
