@@ -18,6 +18,7 @@ from __future__ import annotations
 import os
 import threading
 import time
+import warnings
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -64,6 +65,30 @@ class Processor:
         self.triangulates_in_decode = (
             self.scheme == "two-shot" and self.triangulator.moebius_geometry is not None and not self.decoder.mirrored
         )
+
+    def warm_up(
+        self, dtype: np.dtype | type = np.uint8, announce: Callable[[], None] | None = None, after_s: float = 1.0
+    ) -> float:
+        """Decode one blank frame set of the calibration's camera size and this dtype, so that the kernels are
+        compiled (first run on a machine: numba's cache is empty) or loaded from the cache now, not on the first
+        live set: compiling holds the GIL for ~45 s, which starved the capture thread (a cold `slscan live` took
+        4 frames/s and gave its first depth map after 69 s). announce() is called if it takes longer than after_s
+        (from a timer thread). Returns the seconds it took."""
+        w, h = self.calibration.camera_size
+        blank = np.zeros((h, w, 3), dtype)
+        timer = threading.Timer(after_s, announce) if announce is not None else None
+        t0 = time.perf_counter()
+        if timer is not None:
+            timer.daemon = True
+            timer.start()
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # (nothing to decode in a blank set: that is the point)
+                self.decode_depth((blank,) * len(self.patterns))
+        finally:
+            if timer is not None:
+                timer.cancel()
+        return time.perf_counter() - t0
 
     def decode_depth(self, images: tuple[np.ndarray, ...]) -> tuple[StripeMap, np.ndarray, float]:
         """images[p] saw pattern p: the stripe map, the depth map and the time of a separate triangulation pass in

@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from app.argtypes import positive_float, positive_int
 from app.capture import CaptureLoop, pattern_order
 from app.config import Config, load_config
@@ -63,6 +65,9 @@ class Session:
     sim: Any = None  # the virtual rig, when the session runs on it (ground truth for tests and benches)
     pace: bool = True  # False: the camera paces itself (a replayed dump)
     source: str = ""  # what the session runs on, for messages
+    # the camera frames' dtype, which the decoder's kernels are compiled for before the first set (a 16-bit real
+    # camera, unknown before it opens, compiles its kernels on its first set instead)
+    frame_dtype: Any = np.uint8
 
     def make_loop(self, wrap_projector: Callable[[Any], Any] | None = None, **kw: Any) -> CaptureLoop:
         """Open the devices on the calling thread (a pyglet window belongs to it) and load the patterns.
@@ -78,10 +83,21 @@ class Session:
         return CaptureLoop(camera, projector, trigger, self.scheme, len(self.patterns), rate_hz=self.rate_hz, **kw)
 
     def processor(self) -> Processor:
+        """The session's decoder, its kernels compiled or loaded before any frame arrives (Processor.warm_up): a
+        first run on a machine says so on stderr while it compiles."""
         seg = None  # two-shot: the config's scheme.segmentation (checked when the session was built)
         if self.config is not None and self.scheme == "two-shot":
             seg = self.config.get("scheme.segmentation", None, types=str)
-        return Processor(self.patterns, self.calibration, self.depth_range_mm, seg)
+        proc = Processor(self.patterns, self.calibration, self.depth_range_mm, seg)
+        proc.warm_up(self.frame_dtype, announce=self._announce_compile)
+        return proc
+
+    def _announce_compile(self) -> None:
+        print(
+            f"slscan: compiling the {self.scheme} decoder for this machine (first run only, about a minute)...",
+            file=sys.stderr,
+            flush=True,
+        )
 
     def with_scheme(self, scheme: str) -> Session:
         """The same rig with another pattern scheme (the view's `m` key)."""
@@ -246,7 +262,9 @@ def _sim_session(
             )
         return devs.camera, WatchedWindow(shown, devs.projector), devs.trigger
 
-    return Session(cfg, scheme, patterns, calibration, rng, rate, make_devices, opts, sim=devices)  # type: ignore[arg-type]
+    session = Session(cfg, scheme, patterns, calibration, rng, rate, make_devices, opts, sim=devices)  # type: ignore[arg-type]
+    session.frame_dtype = np.uint16 if rig.options.bit_depth == 16 else np.uint8
+    return session
 
 
 # ------------------------------------------------------------------------------------ command
