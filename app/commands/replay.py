@@ -58,9 +58,15 @@ def replay_session(dump_path: str, calibration: str | None = None, realtime: boo
         return ReplayCamera(dump, realtime=realtime), None, None
 
     rate = 60.0
-    return Session(
+    session = Session(
         None, dump.scheme, patterns, cal, dump.depth_range_mm(), rate, make_devices, pace=False, source=str(dump_path)
     )
+    if dump.frames:
+        try:  # the decoder is compiled for the frames' dtype before the replay starts (Session.processor)
+            session.frame_dtype = dump.load_frame(0).dtype
+        except InputError:
+            pass  # an unreadable first frame: the replay camera reports it in its turn
+    return session
 
 
 def run(args: argparse.Namespace) -> int:

@@ -57,3 +57,16 @@ def test_the_announcement_names_the_scheme_on_stderr(capsys, sim_session):
     sim_session[0]._announce_compile()
     err = capsys.readouterr().err
     assert "compiling the two-shot decoder" in err and "first run only" in err
+
+
+def test_a_replay_warms_up_for_its_dumps_frames_and_survives_an_unreadable_first_frame(tmp_path):
+    from app.cli import main
+    from app.commands.replay import replay_session
+    from app.dump import read_dump
+
+    out = tmp_path / "d16"
+    args = ["sim", "render", "--scene", "plane", "--scheme", "two-shot", "--camera-size", "160x120", "--ideal"]
+    assert main([*args, "--set", "bit_depth=16", "--out", str(out)]) == 0
+    assert replay_session(str(out)).frame_dtype == np.uint16
+    (out / read_dump(out).frames[0].file).write_bytes(b"not a png")
+    assert replay_session(str(out)).frame_dtype == np.uint8  # (the replay camera reports that frame in its turn)
