@@ -1855,9 +1855,11 @@ def _rows(
 @njit(cache=True, nogil=True, error_model="numpy")
 def _row_scratch(n, W, n_copies):
     """The per-row buffers of the run segmentation and _label_row, for at most n runs in a row of W pixels."""
-    rs = np.empty(n, np.int64)
-    re = np.empty(n, np.int64)
-    rc = np.empty(n, np.int64)
+    # the runs' bounds and codes in int32: run_bounds16 compresses sixteen to a register (int64: two halves of
+    # eight), and the loops over runs load half the bytes (decode + triangulate 0.97x at 640x480 and 1280x1024)
+    rs = np.empty(n, np.int32)
+    re = np.empty(n, np.int32)
+    rc = np.empty(n, np.int32)
     link = np.zeros(n, np.bool_)
     edge = np.zeros(n, np.float64)
     left = np.zeros(n, np.float64)

@@ -36,6 +36,7 @@ _F32 = ir.FloatType()
 _I32 = ir.IntType(32)
 _I64 = ir.IntType(64)
 _I8 = ir.IntType(8)
+_I16 = ir.IntType(16)
 _PICK8 = ir.VectorType(_I32, 8)  # shuffle indices that pick 8 lanes
 _V = ir.VectorType(_F32, LANES)
 _VI = ir.VectorType(_I32, LANES)
@@ -47,10 +48,12 @@ def _splat(builder: ir.IRBuilder, value: ir.Value, vtype: ir.VectorType) -> ir.V
     return builder.shuffle_vector(v, ir.Constant(vtype, ir.Undefined), pick)
 
 
-def _positions(builder: ir.IRBuilder, x: ir.Value) -> ir.Value:
-    """The int64 vector x, x + 1, ..., x + LANES - 1 (the positions of the lanes of a block at x)."""
-    v64 = ir.VectorType(_I64, LANES)
-    return builder.add(_splat(builder, x, v64), ir.Constant(v64, list(range(LANES))))
+def _positions(builder: ir.IRBuilder, x: ir.Value, elem: ir.IntType = _I64) -> ir.Value:
+    """The vector x, x + 1, ..., x + LANES - 1 of elem (int64 or int32: x truncated) (the positions of the lanes
+    of a block at x)."""
+    v = ir.VectorType(elem, LANES)
+    x = builder.trunc(x, elem) if elem.width < x.type.width else x
+    return builder.add(_splat(builder, x, v), ir.Constant(v, list(range(LANES))))
 
 
 def _masked_gather(builder: ir.IRBuilder, base: ir.Value, index: ir.Value, value: ir.Type, name: str) -> ir.Value:
@@ -75,11 +78,22 @@ def _masked_gather(builder: ir.IRBuilder, base: ir.Value, index: ir.Value, value
 
 
 def _append(builder: ir.IRBuilder, values: ir.Value, mask: ir.Value, base: ir.Value, at: ir.Value) -> ir.Value:
-    """Store the lanes of 16 int64 values where mask is on, packed, at base[at:], and return at + their count
-    (whole vectors are written: the caller keeps room for 16 more values there). Compressed into registers
-    eight lanes at a time, each stored plainly: vpcompressq with a memory operand is several times slower on
+    """Store the lanes of 16 int64 or int32 values where mask is on, packed, at base[at:], and return at + their
+    count (whole vectors are written: the caller keeps room for 16 more values there). int64 compressed into
+    registers eight lanes at a time, each stored plainly: vpcompressq with a memory operand is several times slower on
     Intel, and LLVM splits a 16-lane compress through an aligned stack slot that numba's frames do not align
     (a crash)."""
+    if values.type.element.width == 32:
+        # int32: the 16 lanes fill one 512-bit register, compressed at once
+        full = values.type
+        fmask = ir.VectorType(ir.IntType(1), LANES)
+        compress = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(full, [full, fmask, full]), "llvm.experimental.vector.compress.v16i32"
+        )
+        pop16 = cgutils.get_or_insert_function(builder.module, ir.FunctionType(_I16, [_I16]), "llvm.ctpop.i16")
+        packed = builder.call(compress, [values, mask, ir.Constant(full, ir.Undefined)])
+        builder.store(packed, builder.bitcast(builder.gep(base, [at]), full.as_pointer()), align=4)
+        return builder.add(at, builder.zext(builder.call(pop16, [builder.bitcast(mask, _I16)]), _I64))
     half = ir.VectorType(_I64, 8)
     hmask = ir.VectorType(ir.IntType(1), 8)
     compress = cgutils.get_or_insert_function(
@@ -321,7 +335,8 @@ def gather8(typingctx, dst, table, idx, i):
 
 def run_bounds16_takes(code: types.Type, rs: types.Type, re: types.Type, rc: types.Type) -> bool:
     """Whether run_bounds16 takes arrays of these (numba) types (see run_bounds16)."""
-    return _c(code, 1, (types.int8,)) and all(_c(t, 1, (types.int64,)) for t in (rs, re, rc))
+    same = any(all(_c(t, 1, (w,)) for t in (rs, re, rc)) for w in (types.int32, types.int64))
+    return _c(code, 1, (types.int8,)) and same
 
 
 @intrinsic
@@ -330,7 +345,7 @@ def run_bounds16(typingctx, code, x, rs, re, rc, ns, ne):
     each pixel that starts a run (its code differs from the pixel before) appends its position to rs[ns:] and
     its code to rc[ns:], each that ends one (differs from the pixel after) its position to re[ne:], with
     compressed vectors (see _append; a scalar loop appends with a dependency from pixel to pixel). Returns the
-    advanced (ns, ne). code is 1-D C-contiguous int8, rs/re/rc 1-D C-contiguous int64; the
+    advanced (ns, ne). code is 1-D C-contiguous int8, rs/re/rc 1-D C-contiguous, all int32 or all int64; the
     caller keeps 1 <= x and x + 17 <= len(code) (the neighbours are read) and room for 16 more entries."""
     if not (run_bounds16_takes(code, rs, re, rc) and all(isinstance(t, types.Integer) for t in (x, ns, ne))):
         return None
@@ -338,7 +353,8 @@ def run_bounds16(typingctx, code, x, rs, re, rc, ns, ne):
     sig = ret(code, x, rs, re, rc, ns, ne)
     i8 = ir.IntType(8)
     v8 = ir.VectorType(i8, LANES)
-    v64 = ir.VectorType(_I64, LANES)
+    elem = ir.IntType(rs.dtype.bitwidth)
+    vout = ir.VectorType(elem, LANES)
 
     def codegen(context, builder, signature, args):
         kinds = signature.args
@@ -353,8 +369,8 @@ def run_bounds16(typingctx, code, x, rs, re, rc, ns, ne):
         coded = builder.icmp_signed(">=", cur, ir.Constant(v8, [0] * LANES))
         start = builder.and_(coded, builder.icmp_signed("!=", cur, prev))
         end = builder.and_(coded, builder.icmp_signed("!=", cur, nxt))
-        pos = _positions(builder, xa)
-        _append(builder, builder.sext(cur, v64), start, k.data, n_s)
+        pos = _positions(builder, xa, elem)
+        _append(builder, builder.sext(cur, vout), start, k.data, n_s)
         out = (_append(builder, pos, start, s.data, n_s), _append(builder, pos, end, e.data, n_e))
         return context.make_tuple(builder, ret, out)
 
@@ -363,14 +379,14 @@ def run_bounds16(typingctx, code, x, rs, re, rc, ns, ne):
 
 def append_where16_takes(flags: types.Type, out: types.Type) -> bool:
     """Whether append_where16 takes arrays of these (numba) types (see append_where16)."""
-    return _c(flags, 1, (types.int8, types.uint8, types.boolean)) and _c(out, 1, (types.int64,))
+    return _c(flags, 1, (types.int8, types.uint8, types.boolean)) and _c(out, 1, (types.int32, types.int64))
 
 
 @intrinsic
 def append_where16(typingctx, flags, x, out, n):
     """Append to out[n:] the positions x + l (l < 16) where flags[x + l] is nonzero, with
     compressed vectors (see _append); returns the new n. flags is 1-D C-contiguous int8/uint8/bool, out 1-D
-    C-contiguous int64; the caller keeps x + 16 <= len(flags) and room for 16 more entries in out."""
+    C-contiguous int32/int64; the caller keeps x + 16 <= len(flags) and room for 16 more entries in out."""
     if not (append_where16_takes(flags, out) and isinstance(x, types.Integer) and isinstance(n, types.Integer)):
         return None
     sig = types.int64(flags, x, out, n)
@@ -387,7 +403,7 @@ def append_where16(typingctx, flags, x, out, n):
         # (numba stores a bool as one byte: 0 or 1)
         raw = builder.load(builder.bitcast(builder.gep(f.data, [xa]), v8.as_pointer()), align=1)
         keep = builder.icmp_unsigned("!=", raw, ir.Constant(v8, [0] * LANES))
-        return _append(builder, _positions(builder, xa), keep, o.data, na)
+        return _append(builder, _positions(builder, xa, ir.IntType(kinds[2].dtype.bitwidth)), keep, o.data, na)
 
     return sig, codegen
 

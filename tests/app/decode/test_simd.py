@@ -264,9 +264,11 @@ def test_compressed_run_bounds_equal_the_runs_by_hand(width):
             code[:] = trial - 1
         expected = _runs_by_hand(code)
         for row in (code, np.repeat(code, 2)[::2]):  # C-contiguous (compressed stores) and strided (the loop)
-            rs, re, rc = (np.full(2 * width + 16, -7, np.int64) for _ in range(3))
-            n = _run_bounds(row, rs, re, rc)
-            assert list(zip(rs[:n].tolist(), re[:n].tolist(), rc[:n].tolist(), strict=True)) == expected
+            for dtype in (np.int32, np.int64):  # (int32: the decoder's, sixteen to a register)
+                rs, re, rc = (np.full(2 * width + 16, -7, dtype) for _ in range(3))
+                n = _run_bounds(row, rs, re, rc)
+                assert list(zip(rs[:n].tolist(), re[:n].tolist(), rc[:n].tolist(), strict=True)) == expected
+                assert (rs[n + 16 :] == -7).all() and (re[n + 16 :] == -7).all()  # (whole vectors, nothing beyond)
 
 
 def _labels_by_windows(pos, k, period):
@@ -312,9 +314,11 @@ def test_compressed_positions_equal_flatnonzero(n):
     flags = rng.random(n + 5) < 0.3
     expected = np.flatnonzero(flags[:n]).tolist()
     for f in (flags, flags.astype(np.int8) * 3, np.repeat(flags, 2)[::2]):  # bool, int8, strided (the loop)
-        out = np.full(n + 32, -7, np.int64)
-        m = _append_where(f, n, out)
-        assert out[:m].tolist() == expected
+        for dtype in (np.int32, np.int64):
+            out = np.full(n + 32, -7, dtype)
+            m = _append_where(f, n, out)
+            assert out[:m].tolist() == expected
+            assert (out[m + 16 :] == -7).all()  # (whole vectors: at most 16 entries past the last written)
 
 
 @pytest.mark.parametrize("spacing", [0.4, 2.2, 4.5, 7.9, 12.0])  # node spacings in pixels: short and long segments
