@@ -206,6 +206,8 @@ class LiveView:
         self.record_msgs: list[str] = []
         self.snapshots = 0
         self.message = ""
+        self.show_now: Any = None  # shows a status text at once (set while the window is open)
+        self.status_text = ""  # what the status line shows
         self.processor = session.processor()
         self.pipe: Any = None  # started once the window is open (no devices running behind a failed window)
         self.projector: Any = None  # the rig's projector window, served by this thread (OwnerThreadProjector)
@@ -287,6 +289,8 @@ class LiveView:
         self._stop_pipeline()
         try:
             session = self.session.with_scheme(nxt)
+            if self.show_now is not None:  # (the window waits while the new decoder is compiled or loaded)
+                self.show_now(f"switching to {nxt}: preparing its decoder (compiling it on a first run takes a minute)")
             processor = session.processor()
         except Exception as exc:
             self.message = f"cannot switch to {nxt}: {exc}"
@@ -384,6 +388,13 @@ class LiveView:
         last: Result | None = None
         status_due: list[Any] = [0.0, None]  # when the status line is next laid out, and its message
 
+        def show_now(text: str) -> None:
+            label.text = self.status_text = f"[{self.session.scheme}] {text}"
+            draw()
+            status_due[0] = 0.0  # the usual status line again at the next redraw
+
+        self.show_now = show_now
+
         def tick() -> None:
             nonlocal last
             t0 = time.perf_counter()
@@ -410,6 +421,7 @@ class LiveView:
                     + status_line(self.pipe.figures(), rec)
                     + (f"  | {self.message}" if self.message else "")
                 )
+                self.status_text = label.text
             self.redraw_ms.append((time.perf_counter() - t0) * 1e3)
             del self.redraw_ms[:-1000], self.points_ms[:-1000]
 

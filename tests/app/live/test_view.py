@@ -31,6 +31,13 @@ SCRIPT = textwrap.dedent(
 
     session = build_session(None, sim_overrides={"camera_size": [320, 240]})
     view = LiveView(session, argparse.Namespace(timeout=3.0, workers=1, frames=None, png_level=0))
+    # what the window says while a switched-to scheme's decoder is compiled or loaded (Session.processor)
+    Session = type(session)
+    processor = Session.processor
+    def processor_spy(self):
+        print("status while preparing:", view.status_text, flush=True)
+        return processor(self)
+    Session.processor = processor_spy
     plan = [("result", None), ("wait", 0.3), ("points", None), ("press", key.LEFT), ("wait", 0.3), ("points", None),
             ("wait", 0.3), ("points", None),
             ("press", key.SPACE), ("press", key.R), ("wait", 0.6), ("press", key.R),
@@ -82,6 +89,7 @@ def test_view_shows_results_and_its_keys_work(tmp_path, xserver):
     assert r.returncode == 0, r.stderr[-2000:]
     assert "snapshot written to snapshot-000" in r.stdout
     assert "scheme: one-shot" in r.stdout
+    assert "status while preparing: [two-shot] switching to one-shot: preparing its decoder" in r.stdout
     # the 3D panel shows depth-coloured points (the depth panel's palette, nothing else), orbiting,
     # then turned by the left arrow key
     points = [line.split() for line in r.stdout.splitlines() if line.startswith("points ")]
