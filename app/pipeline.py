@@ -18,7 +18,6 @@ from __future__ import annotations
 import os
 import threading
 import time
-import warnings
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -70,20 +69,22 @@ class Processor:
         self, dtype: np.dtype | type = np.uint8, announce: Callable[[], None] | None = None, after_s: float = 1.0
     ) -> float:
         """Decode one blank frame set of the calibration's camera size and this dtype, so that the kernels are
-        compiled (first run on a machine: numba's cache is empty) or loaded from the cache now, not on the first
-        live set: compiling holds the GIL for ~45 s, which starved the capture thread (a cold `slscan live` took
-        4 frames/s and gave its first depth map after 69 s). announce() is called if it takes longer than after_s
-        (from a timer thread). Returns the seconds it took."""
+        compiled (numba's cache is empty on a first run, and after the kernels' sources change) or loaded from the
+        cache now, not on the first live set: compiling holds the GIL for ~45 s, which starved the capture thread (a
+        cold `slscan live` took 4 frames/s and gave its first depth map after 69 s). Gray code decodes with numpy:
+        only its triangulation is compiled, so only that runs (a blank 1920x1080 set took ~1 s to decode).
+        announce() is called if it takes longer than after_s (from a timer thread). Returns the seconds it took."""
         w, h = self.calibration.camera_size
-        blank = np.zeros((h, w, 3), dtype)
         timer = threading.Timer(after_s, announce) if announce is not None else None
         t0 = time.perf_counter()
         if timer is not None:
             timer.daemon = True
             timer.start()
         try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")  # (nothing to decode in a blank set: that is the point)
+            if self.scheme == "graycode":
+                self.triangulator.depth(np.full((h, w), np.nan, np.float32))
+            else:
+                blank = np.zeros((h, w, 3), dtype)
                 self.decode_depth((blank,) * len(self.patterns))
         finally:
             if timer is not None:

@@ -29,6 +29,7 @@ from app.pipeline import DECODE_WORKERS, WORKERS_HELP, LivePipeline, Processor, 
 from app.rig_devices import make_device, rig_driver
 from calibration.model import Calibration
 from drivers.base import CAMERAS, PROJECTORS, TRIGGERS
+from drivers.camera.pixels import camera_frame_dtype
 
 HELP = "run the live scanning session (virtual rig by default; --config for real hardware)"
 
@@ -65,8 +66,8 @@ class Session:
     sim: Any = None  # the virtual rig, when the session runs on it (ground truth for tests and benches)
     pace: bool = True  # False: the camera paces itself (a replayed dump)
     source: str = ""  # what the session runs on, for messages
-    # the camera frames' dtype, which the decoder's kernels are compiled for before the first set (a 16-bit real
-    # camera, unknown before it opens, compiles its kernels on its first set instead)
+    # the camera frames' dtype, which the decoder's kernels are compiled for before the first set (from the config's
+    # camera pixel_format; a camera left in a deeper format than its config says compiles them on its first set)
     frame_dtype: Any = np.uint8
 
     def make_loop(self, wrap_projector: Callable[[Any], Any] | None = None, **kw: Any) -> CaptureLoop:
@@ -93,11 +94,12 @@ class Session:
         return proc
 
     def _announce_compile(self) -> None:
-        print(
-            f"slscan: compiling the {self.scheme} decoder for this machine (first run only, about a minute)...",
-            file=sys.stderr,
-            flush=True,
-        )
+        print(self.compile_message, file=sys.stderr, flush=True)
+
+    @property
+    def compile_message(self) -> str:
+        """What the operator is told while the decoder compiles (Processor.warm_up's announcement)."""
+        return f"slscan: compiling the {self.scheme} decoder (a first run, or changed kernels: about a minute)..."
 
     def with_scheme(self, scheme: str) -> Session:
         """The same rig with another pattern scheme (the view's `m` key)."""
@@ -187,7 +189,9 @@ def build_session(
         return cam, proj, trig
 
     rng = tuple(depth_range) if depth_range else None
-    return Session(cfg, scheme, patterns, calibration, rng, rate, make_devices, opts)  # type: ignore[arg-type]
+    session = Session(cfg, scheme, patterns, calibration, rng, rate, make_devices, opts)  # type: ignore[arg-type]
+    session.frame_dtype = camera_frame_dtype(cam_opts.get("pixel_format"))
+    return session
 
 
 class WatchedWindow:
@@ -324,8 +328,9 @@ def run(args: argparse.Namespace) -> int:
 def run_headless(session: Session, args: argparse.Namespace, label: str = "live") -> int:
     frames = args.frames or 300
     out = Path(args.out) if args.out else Path(time.strftime("live-%Y%m%d-%H%M%S"))
-    recorder = open_recorder(session, args.record, args.png_level) if getattr(args, "record", None) else None
+    # the decoder first: an error (or Ctrl-C) while it compiles leaves no empty dump behind
     processor = session.processor()
+    recorder = open_recorder(session, args.record, args.png_level) if getattr(args, "record", None) else None
     # The devices open on this thread: a projector window (pyglet) stays with it, and this thread
     # serves the window's calls while it waits, so the capture loop's projector thread paces the
     # flips by the trigger, never by the camera's grab (app/owner_thread.py).

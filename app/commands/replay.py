@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+import numpy as np
+
 from app.argtypes import positive_float, positive_int
 from app.errors import InputError
 from app.pipeline import DECODE_WORKERS, WORKERS_HELP
@@ -63,9 +65,11 @@ def replay_session(dump_path: str, calibration: str | None = None, realtime: boo
     )
     if dump.frames:
         try:  # the decoder is compiled for the frames' dtype before the replay starts (Session.processor)
-            session.frame_dtype = dump.load_frame(0).dtype
+            dtype = dump.load_frame(0).dtype
         except InputError:
-            pass  # an unreadable first frame: the replay camera reports it in its turn
+            dtype = None  # an unreadable first frame: the replay camera reports it in its turn
+        if dtype in (np.uint8, np.uint16):  # (other frames fail set by set, each with its file named)
+            session.frame_dtype = dtype
     return session
 
 

@@ -87,6 +87,13 @@ def is_supported(fmt: str) -> bool:
     return fmt in FORMATS
 
 
+def camera_frame_dtype(fmt: object) -> np.dtype:
+    """The dtype of the RGB frames a camera set to pixel format fmt delivers (to_rgb): uint16 for formats deeper
+    than 8 bits, else (also for no format or an unknown one: the camera says so when it opens) uint8."""
+    deep = isinstance(fmt, str) and is_supported(fmt) and FORMATS[fmt].bits > 8
+    return np.dtype(np.uint16 if deep else np.uint8)
+
+
 def line_bytes(fmt: str, width: int) -> int:
     """Bytes of one image line without padding (packed formats must end on a whole byte)."""
     lay = layout(fmt)

@@ -4,6 +4,10 @@ GIL, with no depth maps and no word to the operator."""
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+import textwrap
 import time
 
 import numpy as np
@@ -14,49 +18,91 @@ from app.pipeline import Processor
 from .conftest import SMALL
 
 
-def _record_decodes(monkeypatch, delay_s: float = 0.0) -> list:
-    """Every frame set Processor.decode_depth sees (shape and dtype of each frame), after delay_s."""
+def _record(monkeypatch, name: str, delay_s: float = 0.0) -> list:
+    """The arguments of every call of Processor.<name> (after delay_s, then the real method)."""
     seen: list = []
-    real = Processor.decode_depth
+    real = getattr(Processor, name)
 
-    def spy(self, images):
-        seen.append([(im.shape, im.dtype) for im in images])
+    def spy(self, *args, **kw):
+        seen.append((args, kw))
         time.sleep(delay_s)
-        return real(self, images)
+        return real(self, *args, **kw)
 
-    monkeypatch.setattr(Processor, "decode_depth", spy)
+    monkeypatch.setattr(Processor, name, spy)
     return seen
 
 
-def test_session_processor_decodes_a_blank_set_of_the_camera_size_and_dtype_first(monkeypatch, capsys):
-    seen = _record_decodes(monkeypatch)
+def test_session_processor_decodes_a_blank_set_of_the_camera_size_and_dtype_first(monkeypatch):
+    warmed = _record(monkeypatch, "warm_up")
+    decoded = _record(monkeypatch, "decode_depth")
     session = build_session(None, sim_overrides={**SMALL, "bit_depth": 16})
-    processor = session.processor()
-    assert seen == [[((240, 320, 3), np.dtype(np.uint16))] * 2]
-    # fast here (the test run's kernels are compiled): nothing said
-    assert "compiling" not in capsys.readouterr().err
-    # and the warmed decoder decodes the rig's frames to depth
-    frames = [session.sim.rig.render(im) for im in session.patterns.images]
-    _, depth, _ = processor.decode_depth(tuple(frames))
-    assert depth.dtype == np.float32 and (depth > 0).mean() > 0.5
+    session.processor()
+    assert len(warmed) == 1
+    (dtype,), kw = warmed[0]
+    assert dtype == np.uint16 and kw["announce"] == session._announce_compile
+    ((images,), _), *_ = decoded
+    assert [(im.shape, im.dtype) for im in images] == [((240, 320, 3), np.dtype(np.uint16))] * 2
+    assert not any(im.any() for im in images)
 
 
 def test_a_slow_warm_up_is_announced_once_and_a_fast_one_is_not(monkeypatch, sim_session):
     processor = sim_session[1]
     calls: list[float] = []
-    assert processor.warm_up(np.uint8, announce=lambda: calls.append(time.perf_counter()), after_s=5.0) < 5.0
+    # fast (compiled already): the timer is cancelled, nothing said even once its time has passed
+    assert processor.warm_up(np.uint8, announce=lambda: calls.append(time.perf_counter()), after_s=0.3) < 0.3
+    time.sleep(0.6)
     assert calls == []
-    _record_decodes(monkeypatch, delay_s=0.4)
+    _record(monkeypatch, "decode_depth", delay_s=0.4)
     t0 = time.perf_counter()
     took = processor.warm_up(np.uint8, announce=lambda: calls.append(time.perf_counter()), after_s=0.05)
-    time.sleep(0.1)  # (a timer that was not cancelled would fire late)
+    time.sleep(0.1)
     assert took >= 0.4 and len(calls) == 1 and calls[0] - t0 < 0.4
 
 
 def test_the_announcement_names_the_scheme_on_stderr(capsys, sim_session):
     sim_session[0]._announce_compile()
     err = capsys.readouterr().err
-    assert "compiling the two-shot decoder" in err and "first run only" in err
+    assert "compiling the two-shot decoder" in err and "about a minute" in err
+
+
+# In a fresh process (numba's dispatchers start empty): after the warm-up, decoding the rig's frames must add
+# no kernel signature, i.e. compile (or load) nothing more.
+NOTHING_NEW = textwrap.dedent(
+    """
+    import sys, numba
+    from app.commands.live import build_session
+
+    def signatures():
+        out = {}
+        for name, mod in list(sys.modules.items()):
+            if name.startswith(("app.", "drivers.")):
+                for attr, obj in vars(mod).items():
+                    if isinstance(obj, numba.core.registry.CPUDispatcher):
+                        out[f"{name}.{attr}"] = set(obj.signatures)
+        return out
+
+    session = build_session(None, scheme=sys.argv[1], sim_overrides={"camera_size": [320, 240]})
+    processor = session.processor()
+    before = signatures()
+    frames = [session.sim.rig.render(im) for im in session.patterns.images]
+    _, depth, _ = processor.decode_depth(tuple(frames))
+    after = signatures()
+    print("warmed kernels", sum(bool(s) for s in before.values()))
+    print("new", sorted(k for k, s in after.items() if s - before.get(k, set())))
+    print("depth", float((depth > 0).mean()))
+    """
+)
+
+
+def test_after_the_warm_up_the_first_frames_compile_nothing():
+    r = subprocess.run(
+        [sys.executable, "-c", NOTHING_NEW, "two-shot"], capture_output=True, text=True, timeout=600, env=os.environ
+    )
+    assert r.returncode == 0, r.stderr[-2000:]
+    lines = dict(line.split(" ", 1) for line in r.stdout.splitlines())
+    assert int(lines["warmed"].split()[-1]) >= 3, r.stdout
+    assert lines["new"] == "[]", r.stdout
+    assert float(lines["depth"]) > 0.3, r.stdout
 
 
 def test_a_replay_warms_up_for_its_dumps_frames_and_survives_an_unreadable_first_frame(tmp_path):

@@ -65,6 +65,7 @@ def test_mono_and_colour_formats_round_trip(fmt):
     rgb = to_rgb(encode(v, fmt), fmt, W, H)
     assert rgb.shape == (H, W, 3)
     assert rgb.dtype == (np.uint8 if lay.bits == 8 else np.uint16)
+    assert pixels.camera_frame_dtype(fmt) == rgb.dtype  # (what the live session compiles its decoder for)
     s = scaled(v, lay.bits).reshape(H, W, lay.samples_per_pixel)
     expect = {
         "mono": lambda: np.repeat(s, 3, axis=2),
@@ -147,3 +148,13 @@ def test_real_sized_frame_from_numpy_view():
     rgb = to_rgb(big, "Mono12p", w, h)
     np.testing.assert_array_equal(rgb[:2, :, 1], v[:2] << 4)
     assert (rgb[2:] == 0).all()
+
+
+def test_frame_dtype_of_bayer_no_and_unknown_formats():
+    for fmt in BAYER:
+        lay = FORMATS[fmt]
+        raw = np.zeros(pixels.line_bytes(fmt, W) * H, np.uint8)
+        assert (
+            pixels.camera_frame_dtype(fmt) == to_rgb(raw, fmt, W, H).dtype == (np.uint8 if lay.bits == 8 else np.uint16)
+        )
+    assert pixels.camera_frame_dtype(None) == pixels.camera_frame_dtype("NoSuchFormat") == np.uint8
