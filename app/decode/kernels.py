@@ -63,8 +63,9 @@ END_EXT = 0.5
 
 @njit(cache=True, nogil=True, inline="always")
 def _wrap(v, period):
-    """v mod period for 0 <= v < 2 * period (Python's % costs a division per call)."""
-    return v - period if v >= period else v
+    """v mod period for 0 <= v < 2 * period (Python's % costs a division per call); of v's type when both are
+    int32 (numba would widen the difference to int64)."""
+    return type(v)(v - period) if v >= period else v
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
@@ -723,13 +724,21 @@ def _window_positions(nr, rc, link, table, A, k, pos, keys):
         s = 0
         while (1 << s) < A:
             s += 1
-        for j in range(nw):
-            key = rc[j] | (rc[j + 1] << s) | (rc[j + 2] << 2 * s) | (rc[j + 3] << 3 * s) | (rc[j + 4] << 4 * s)
-            keys[j] = key | (rc[j + 5] << 5 * s) | (rc[j + 6] << 6 * s)
+        if s == 2:
+            # the two-shot alphabet: shifts by constants, which the compiler keeps in int32 lanes (shifts by a
+            # variable amount it widened to int64: half the lanes)
+            for j in range(nw):
+                key = rc[j] | (rc[j + 1] << 2) | (rc[j + 2] << 4) | (rc[j + 3] << 6) | (rc[j + 4] << 8)
+                keys[j] = key | (rc[j + 5] << 10) | (rc[j + 6] << 12)
+        else:
+            for j in range(nw):
+                key = rc[j] | (rc[j + 1] << s) | (rc[j + 2] << 2 * s) | (rc[j + 3] << 3 * s) | (rc[j + 4] << 4 * s)
+                keys[j] = key | (rc[j + 5] << 5 * s) | (rc[j + 6] << 6 * s)
         _gather(pos, table, keys, nw)
         for j in range(nw):
-            nl = np.int64(link[j]) + link[j + 1] + link[j + 2] + link[j + 3] + link[j + 4] + link[j + 5]
-            pos[j] = pos[j] if nl == 6 else -1
+            # all six links (bools, and-ed: a sum of them in int64 took half the lanes)
+            linked = link[j] & link[j + 1] & link[j + 2] & link[j + 3] & link[j + 4] & link[j + 5]
+            pos[j] = pos[j] if linked else -1
     elif k == 7:
         A2 = A * A
         A3 = A2 * A
@@ -799,15 +808,17 @@ def _confirmed_labels(nr, pos, lab, k, period, cw):
         none = np.int32(-1)
         for j in range(6):
             cw[j] = none
-        for j in range(nr):
-            p = pos[j]
-            pp = pos[j - 1] if j > 0 else -1
-            pn = pos[j + 1] if j + 1 < nr else -1
-            after = _wrap(pp + 1, period)
-            nxt = _wrap(p + 1, period)
-            ok = ((pp >= 0) & (p == after)) | ((p >= 0) & (pn == nxt))
-            cw[j + 6] = np.int32(p) if ok else none
         per = np.int32(period)
+        one = np.int32(1)
+        for j in range(nr):
+            # int32 throughout (numba widens int32 arithmetic to int64: half the lanes); positions are < period
+            p = np.int32(pos[j])
+            pp = np.int32(pos[j - 1]) if j > 0 else none
+            pn = np.int32(pos[j + 1]) if j + 1 < nr else none
+            after = _wrap(np.int32(pp + one), per)
+            nxt = _wrap(np.int32(p + one), per)
+            ok = ((pp >= 0) & (p == after)) | ((p >= 0) & (pn == nxt))
+            cw[j + 6] = p if ok else none
         for i in range(nr):
             # window i - t gives run i the label p + t; the seven merged as a tree (the merge is associative)
             c0 = _window_label(cw[i + 6], 0, per)
