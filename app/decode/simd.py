@@ -434,6 +434,35 @@ def fill8(typingctx, arr, i, value):
 
 
 @intrinsic
+def spread8x2(typingctx, src, i, dst, x):
+    """dst[x:x + 8] = src[i] and dst[x + 8:x + 16] = src[i + 1] as one 16-lane vector (two values, each over a
+    block of 8 pixels): src and dst 1-D C-contiguous float32; the caller keeps i + 2 <= len(src) and
+    x + 16 <= len(dst)."""
+    if not (
+        _c(src, 1, (types.float32,))
+        and _c(dst, 1, (types.float32,))
+        and isinstance(i, types.Integer)
+        and isinstance(x, types.Integer)
+    ):
+        return None
+    sig = types.void(src, i, dst, x)
+
+    def codegen(context, builder, signature, args):
+        kinds = signature.args
+        s = context.make_array(kinds[0])(context, builder, args[0])
+        d = context.make_array(kinds[2])(context, builder, args[2])
+        at_s = context.cast(builder, args[1], kinds[1], types.int64)
+        at_d = context.cast(builder, args[3], kinds[3], types.int64)
+        two = ir.VectorType(_F32, 2)
+        pair = builder.load(builder.bitcast(builder.gep(s.data, [at_s]), two.as_pointer()), align=4)
+        spread = builder.shuffle_vector(pair, ir.Constant(two, ir.Undefined), ir.Constant(_VI, [0] * 8 + [1] * 8))
+        builder.store(spread, builder.bitcast(builder.gep(d.data, [at_d]), _V.as_pointer()), align=4)
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+@intrinsic
 def prefetch_at(typingctx, arr, y, x):
     """Ask the caches for the 64-byte line holding arr[y, x] (2-D C-contiguous) ahead of its use, into L2
     (llvm.prefetch, locality 2): a hint, with no effect on values and no fault at any address."""

@@ -8,7 +8,7 @@ from numba import njit
 from synth import make_calibration, plane_depth, render
 
 from app.decode import kernels
-from app.decode.simd import gather8
+from app.decode.simd import gather8, spread8x2
 from app.decode.twoshot import TwoShotDecoder, two_shot_spec
 from app.patterns import two_shot_patterns
 
@@ -163,7 +163,7 @@ def _fused_codes(f1, f2, lin, dlin, pk, unmix, t_abs, t_rel, block, code):
     W = f1.shape[1]
     m = unmix.shape[0]
     nb = (W + block - 1) // block
-    bmax = np.empty((m, nb + 2), np.float32)
+    bmax = np.empty((2 * max(m, 2), nb + 2), np.float32)
     tmp = np.empty((2 * m + 2, W), np.float32)
     for y in range(f1.shape[0]):
         ahead = ((bmax, 0),)  # (a row to prefetch: any)
@@ -406,3 +406,17 @@ def test_tables_are_packed_in_pairs(levels):
     lin, dlin = rng.random((2, 3, levels)).astype(np.float32)
     assert np.array_equal(kernels.pack_tables(lin, dlin), _packed(lin, dlin))
     assert kernels.pack_tables(lin, dlin[:2]).size == 0  # tables of different shapes: none
+
+
+@njit(cache=False)
+def _spread(src, dst, n):
+    for i in range(n):
+        spread8x2(src, 2 * i, dst, 16 * i)
+
+
+def test_spread8x2_writes_two_values_over_eight_lanes_each_and_nothing_else():
+    src = np.arange(1, 9, dtype=np.float32) * 1.5
+    dst = np.full(56, -1.0, np.float32)
+    _spread(src, dst, 3)
+    np.testing.assert_array_equal(dst[:48], np.repeat(src[:6], 8))
+    assert (dst[48:] == -1.0).all()
