@@ -94,12 +94,9 @@ class Session:
         return proc
 
     def _announce_compile(self) -> None:
-        print(self.compile_message, file=sys.stderr, flush=True)
-
-    @property
-    def compile_message(self) -> str:
-        """What the operator is told while the decoder compiles (Processor.warm_up's announcement)."""
-        return f"slscan: compiling the {self.scheme} decoder (a first run, or changed kernels: about a minute)..."
+        """Processor.warm_up's announcement: what the operator is told while the decoder compiles."""
+        msg = f"slscan: compiling the {self.scheme} decoder (a first run, or changed kernels: about a minute)..."
+        print(msg, file=sys.stderr, flush=True)
 
     def with_scheme(self, scheme: str) -> Session:
         """The same rig with another pattern scheme (the view's `m` key)."""
