@@ -12,11 +12,36 @@ the vector width changes no rounding. numba reads the CPU features once, when it
 `NUMBA_CPU_NAME` or `NUMBA_CPU_FEATURES` set by the user win (numba's own settings), and
 `SLSCAN_WIDE_VECTORS=0` keeps LLVM's choice (measured only on Emerald Rapids: CPUs that lower their clock
 for 512-bit instructions or split them in two may not gain).
+
+Two more guards, both before anything compiles:
+
+- The compiler floor. The vector intrinsics (`app/decode/simd.py`) use `llvm.experimental.vector.compress`
+  (LLVM 19+) and opaque-pointer intrinsic names: llvmlite 0.45 (LLVM 20, numba 0.62) is the first release with
+  both. An older numba or llvmlite is refused at import with one line naming the versions found.
+- One cache per source. numba's on-disk cache checks only the file that defines a function, but the decoder's
+  kernels inline helpers from other files (simd.py, triangulate.py, ...): an edit there would leave a stale
+  cached kernel. So numba's cache folder is keyed by a digest of every Python file of the application that
+  mentions numba: `<base>/slscan-<digest>`, base = `NUMBA_CACHE_DIR` if set, else `~/.cache/slscan/numba`
+  (`XDG_CACHE_HOME` respected). Any edit of such a file starts a fresh cache; folders unused for a week are
+  removed.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
+import shutil
+import time
+from importlib import metadata
+from pathlib import Path
+
+from app.errors import SlscanError
+
+NUMBA_FLOOR = (0, 62)
+LLVMLITE_FLOOR = (0, 45)
+LLVM_FLOOR = 20
+PACKAGES = ("app", "drivers", "calibration")  # the application's top-level packages, beside this one's
+STALE_CACHE_S = 7 * 24 * 3600
 
 WIDE_VECTORS = "-prefer-256-bit"  # appended to the host's features where it has AVX-512
 
@@ -40,4 +65,81 @@ def use_wide_vectors() -> bool:
     return True
 
 
+class CompilerVersionError(SlscanError, ImportError):
+    """numba or llvmlite older than the decoder's intrinsics need."""
+
+
+def _release(version: str) -> tuple[int, ...]:
+    parts = []
+    for p in version.split(".")[:2]:
+        digits = "".join(ch for ch in p if ch.isdigit())
+        parts.append(int(digits or 0))
+    return tuple(parts)
+
+
+def check_compiler(numba_version: str, llvmlite_version: str, llvm_major: int) -> None:
+    """Raise CompilerVersionError unless the versions meet NUMBA_FLOOR, LLVMLITE_FLOOR and LLVM_FLOOR."""
+    if _release(numba_version) >= NUMBA_FLOOR and _release(llvmlite_version) >= LLVMLITE_FLOOR:
+        if llvm_major >= LLVM_FLOOR:
+            return
+    need = f"numba >= {'.'.join(map(str, NUMBA_FLOOR))} with llvmlite >= {'.'.join(map(str, LLVMLITE_FLOOR))}"
+    raise CompilerVersionError(
+        f"slscan's decoder needs {need} (LLVM {LLVM_FLOOR}+); found numba {numba_version}, "
+        f"llvmlite {llvmlite_version} (LLVM {llvm_major}): pip install -U numba llvmlite"
+    )
+
+
+def _installed_compiler() -> tuple[str, str, int]:
+    import llvmlite.binding as llvm
+
+    return metadata.version("numba"), metadata.version("llvmlite"), int(llvm.llvm_version_info[0])
+
+
+def source_digest(root: Path | None = None) -> str:
+    """sha256 (first 16 hex digits) over the path and text of every .py file under PACKAGES that mentions numba."""
+    root = root or Path(__file__).resolve().parent.parent
+    h = hashlib.sha256()
+    for pkg in PACKAGES:
+        for path in sorted((root / pkg).rglob("*.py")):
+            text = path.read_bytes()
+            if b"numba" in text:
+                h.update(path.relative_to(root).as_posix().encode() + b"\0" + text + b"\0")
+    return h.hexdigest()[:16]
+
+
+def cache_base() -> Path:
+    env = os.environ.get("NUMBA_CACHE_DIR")
+    if env:
+        return Path(env)
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return (Path(xdg) if xdg else Path.home() / ".cache") / "slscan" / "numba"
+
+
+def use_source_keyed_cache() -> Path:
+    """Point numba's cache at cache_base()/slscan-<source_digest()> (see above); the folder in use."""
+    from numba.core import config
+
+    base = cache_base()
+    folder = base / f"slscan-{source_digest()}"
+    config.CACHE_DIR = str(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        os.utime(folder)  # in use: not stale for other checkouts' clean-up
+    except OSError:
+        pass  # (numba reports an unwritable cache itself, when it first writes)
+    _remove_stale(base, folder)
+    return folder
+
+
+def _remove_stale(base: Path, keep: Path) -> None:
+    try:
+        old = [p for p in base.glob("slscan-*") if p != keep and time.time() - p.stat().st_mtime > STALE_CACHE_S]
+    except OSError:
+        return
+    for p in old:
+        shutil.rmtree(p, ignore_errors=True)
+
+
+check_compiler(*_installed_compiler())
 use_wide_vectors()
+use_source_keyed_cache()

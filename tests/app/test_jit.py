@@ -46,3 +46,60 @@ def test_the_switch_keeps_llvm_s_choice():
 def test_numba_cpu_features_set_by_the_user_win():
     _, wide, _, features = _probe(NUMBA_CPU_FEATURES="+sse2,+sse4.2")
     assert wide == "False" and features == "+sse2,+sse4.2"
+
+
+CACHE_PROBE = """
+import numpy as np
+from numba.core import config
+import app.jit
+from app.triangulate import Triangulator  # noqa: F401  (a module of cached kernels)
+from app.decode.pipeline import average_frames_of
+a = np.zeros((4, 4, 3), np.uint8)
+average_frames_of(a, a)
+print(config.CACHE_DIR)
+"""
+
+
+def test_numba_caches_into_a_folder_keyed_by_the_sources(tmp_path):
+    from app import jit
+
+    env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
+    run = subprocess.run(
+        [sys.executable, "-c", CACHE_PROBE], env={**env, "NUMBA_CACHE_DIR": str(tmp_path)}, capture_output=True,
+        text=True,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    folder = run.stdout.split()[-1]
+    assert folder == str(tmp_path / f"slscan-{jit.source_digest()}")
+    assert list((tmp_path / folder).rglob("*.nbi")), "the compiled kernels were not cached there"
+
+
+def test_an_edit_of_any_file_that_uses_numba_moves_the_cache(tmp_path):
+    from app import jit
+
+    (tmp_path / "app" / "decode").mkdir(parents=True)
+    helper = tmp_path / "app" / "decode" / "helper.py"
+    helper.write_text("from numba import njit\n\n@njit(inline='always')\ndef one():\n    return 1\n")
+    (tmp_path / "app" / "decode" / "kernel.py").write_text("import numba\nfrom app.decode.helper import one\n")
+    plain = tmp_path / "app" / "plain.py"
+    plain.write_text("X = 1\n")
+    before = jit.source_digest(tmp_path)
+    plain.write_text("X = 2\n")
+    assert jit.source_digest(tmp_path) == before  # no compiled code: no effect on the cache
+    helper.write_text(helper.read_text().replace("return 1", "return 2"))
+    assert jit.source_digest(tmp_path) != before
+
+
+def test_a_too_old_compiler_is_refused_in_one_line_naming_the_versions():
+    from app import jit
+
+    jit.check_compiler("0.62.0", "0.45.0", 20)
+    for old in (("0.61.2", "0.44.0", 15), ("0.62.0", "0.44.0", 15), ("0.68.1", "0.50.0", 19)):
+        try:
+            jit.check_compiler(*old)
+        except jit.CompilerVersionError as exc:
+            msg = str(exc)
+        else:
+            raise AssertionError(f"{old} accepted")
+        assert "\n" not in msg and f"numba {old[0]}" in msg and f"llvmlite {old[1]}" in msg
+        assert "numba >= 0.62" in msg and "llvmlite >= 0.45" in msg
