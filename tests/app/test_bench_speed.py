@@ -1,0 +1,44 @@
+"""`slscan bench --speed`: rows per compile target, judged against the decoder's targets (no timing asserted)."""
+
+from __future__ import annotations
+
+import json
+
+from app.bench import speed
+from app.cli import main
+
+
+def test_json_rows_name_their_compile_target_and_verdict(capsys):
+    argv = ["bench", "--speed", "--speed-sizes", "320x240", "--speed-repeats", "3", "--speed-targets", "native"]
+    assert main([*argv, "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)["speed"]
+    assert [(r["resolution"], r["target"]) for r in rows] == [("320x240", "native")]
+    row = rows[0]
+    assert row["median_ms"] > 0 and row["numpy_pass_ms"] > 0
+    assert abs(row["ratio"] - row["median_ms"] / row["numpy_pass_ms"]) < 0.01 * row["ratio"] + 0.01
+    assert row["within_target"] is True  # no target at 320x240
+
+
+def test_the_verdict_follows_the_targets():
+    def row(res, ms, ratio, scheme="two-shot"):
+        return {"scheme": scheme, "resolution": res, "median_ms": ms, "ratio": ratio}
+
+    assert speed.within_target(row("640x480", 2.9, 30.0))  # (no ratio target where the numpy pass is cached)
+    assert not speed.within_target(row("640x480", 3.1, 5.0))
+    assert speed.within_target(row("1280x1024", 9.9, 9.9))
+    assert not speed.within_target(row("1280x1024", 9.9, 10.5))
+    assert not speed.within_target(row("1920x1080", 30.0, 10.1))
+    assert speed.within_target(row("640x480", 50.0, 99.0, scheme="graycode"))
+
+
+def test_an_unknown_target_is_one_line_and_status_2(capsys):
+    assert main(["bench", "--speed", "--speed-targets", "sse9"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "'sse9'" in err and "native, avx2" in err
+
+
+def test_the_avx2_build_is_asked_for_without_avx512():
+    features = speed.AVX2_ENV["NUMBA_CPU_FEATURES"].split(",")
+    assert speed.AVX2_ENV["NUMBA_CPU_NAME"] == "haswell"
+    assert "+avx2" in features and "+fma" in features
+    assert not [f for f in features if "avx512" in f]
