@@ -568,11 +568,16 @@ def write_chain(col, chain_id, cid, y, stripes, i0, i1, nx, nv, shift, pattern: 
     xr = np.arange(xa, xb + 1, dtype=np.float64)
     seg = np.clip(np.searchsorted(nx, xr, side="left") - 1, 0, len(nx) - 2)
     vals = nv[seg] + (xr - nx[seg]) * (nv[seg + 1] - nv[seg]) / (nx[seg + 1] - nx[seg]) + shift
-    keep = (vals >= nv[0] + shift - END_EXT * sw) & (vals <= nv[-1] + shift + END_EXT * sw)
+    # the tests are on the value as stored (float32): a pixel exactly half a stripe beyond an outer stripe
+    # centre (regular stripes, edges=False) is then kept or not by its stored column, not by float64 rounding
+    vals = vals.astype(np.float32)
+    span_lo = np.float32(nv[0] + shift - END_EXT * sw)
+    span_hi = np.float32(nv[-1] + shift + END_EXT * sw)
+    keep = (vals >= span_lo) & (vals <= span_hi)
     if column_range is not None:
         keep &= (vals >= column_range[0][y, xa : xb + 1]) & (vals <= column_range[1][y, xa : xb + 1])
     xs = xr[keep].astype(int)
-    col[y, xs] = vals[keep].astype(np.float32)
+    col[y, xs] = vals[keep]
     chain_id[y, xs] = cid
 
 

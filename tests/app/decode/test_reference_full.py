@@ -18,7 +18,8 @@ from golden.make_golden import CASES, calibration_from
 
 from app.decode import reference
 from app.decode.pipeline import FrameSetDecoder
-from app.decode.twoshot import TwoShotParams
+from app.decode.twoshot import TwoShotDecoder, TwoShotParams
+from app.decode.windows import LabelParams
 
 GOLDEN = Path(__file__).parent / "golden" / "golden_320x240.npz"
 MIN_DECODED = 0.5  # every case decodes most of its pixels: two empty maps would agree and prove nothing
@@ -125,3 +126,26 @@ def test_the_mirrored_rig_is_decoded_mirrored(golden):
     )
     assert flipped.valid.mean() > MIN_DECODED
     assert unflipped.valid.mean() < 0.5 * flipped.valid.mean()
+
+
+@pytest.mark.parametrize(
+    "name, label, response",
+    [
+        ("cube-runs", LabelParams(edges=False), False),  # nodes at stripe centres (ties at the chain's span ends)
+        ("face-16bit", LabelParams(), True),  # a measured per-channel camera response instead of a gamma
+    ],
+)
+def test_settings_off_the_product_default_match_the_reference(golden, name, label, response):
+    info, frames, cal = _case(golden, name)
+    dec = FrameSetDecoder("two-shot", info["meta"], cal, tuple(info["depth_range_mm"]), info["segmentation"])
+    params = TwoShotParams(segmentation=info["segmentation"], label=label)
+    levels = 65536 if frames[0].dtype == np.uint16 else 256
+    raw = np.linspace(0.0, 1.0, levels)
+    curve = np.stack([raw**2.1, raw**2.2, raw**2.3]) if response else None
+    gamma = _camera_gamma(cal)
+    rng = dec.triangulator.column_range
+    fast = TwoShotDecoder(info["meta"], info["meta"]["size"][0], cal.color_mixing, rng, params, gamma, curve)
+    ref = reference.decode_two_shot(
+        info["meta"], *frames, mixing=cal.color_mixing, gamma=gamma, response=curve, column_range=rng, params=params
+    )
+    _compare(fast.decode(*frames).column, ref.column)
