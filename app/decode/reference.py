@@ -180,6 +180,15 @@ def _flip(a: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(a[:, ::-1])
 
 
+def _mirror_back(sm: StripeMap) -> StripeMap:
+    """The stripe map of a mirrored image on the original pixels (its projector columns stay as they are)."""
+    sm.column = _flip(sm.column)
+    sm.confidence = np.isfinite(sm.column).astype(np.float32)
+    sm.chain = _flip(sm.chain)
+    sm.info = {**sm.info, "mirrored": True}
+    return sm
+
+
 # ------------------------------------------------------------------------------------- entry points
 
 
@@ -206,9 +215,7 @@ def decode_two_shot(
     if columns_run_backwards(rng):
         rng = None if rng is None else (_flip(rng[0]), _flip(rng[1]))
         sm = _decode_two_shot(pattern, pattern_params, _flip(frame1), _flip(frame2), mixing, gamma, response, rng, p)
-        sm.column = _flip(sm.column)
-        sm.chain = None if sm.chain is None else _flip(sm.chain)
-        return sm
+        return _mirror_back(sm)
     return _decode_two_shot(pattern, pattern_params, frame1, frame2, mixing, gamma, response, rng, p)
 
 
@@ -269,10 +276,7 @@ def decode_one_shot(
         rng = None if rng is None else (_flip(rng[0]), _flip(rng[1]))
     code, feat = classify_one_shot(pattern_params, image, mixing=mixing, gamma=gamma, params=p)
     sm = label_rows(code, feat, None, pattern, p.label, rng, events=False)
-    if mirrored:
-        sm.column = _flip(sm.column)
-        sm.chain = _flip(sm.chain)
-    return sm
+    return _mirror_back(sm) if mirrored else sm
 
 
 # ------------------------------------------------------------------------- 1. per-pixel classification
@@ -463,8 +467,9 @@ def window_positions(stripes: list[Stripe], pattern: Pattern) -> list[int]:
 
 def confirmed_labels(pos: list[int], k: int, period: int) -> list[int]:
     """Each stripe's label (sequence index) from the confirmed windows over it: a window is confirmed when
-    the window before or after it continues it (position + 1). -1 none, -2 where windows disagree. (A random
-    run of k codes matches a window of a one-bit-change sequence too easily; two overlapping ones rarely.)"""
+    the window before or after it continues it (position + 1). -1 none, -2 where windows disagree. (In a
+    two-shot sequence every walk of one-bit changes is a window, so one window alone says nothing; the one
+    next to it continues it only if the next code is the sequence's, and the vertical check does the rest.)"""
     n = len(pos)
     lab = [-1] * n
     for j, p in enumerate(pos):
