@@ -2,22 +2,23 @@
 vector IR).
 
 numba never vectorises a loop that reads a table at data-dependent indices and stores into another array:
-without type-based alias information LLVM must assume a store may change the table, so the loop stays scalar
-(about 45 instructions per pixel for the two-shot differences). `differences16` loads 16 RGB pixels of both
-frames, splits the channels with shuffles and reads each pixel's 12 table values with `llvm.masked.gather`,
-with the same float32 operations in the same order as the scalar loop, so the results are bit-identical.
+without type-based alias information LLVM must assume a store may change the table, so the loop stays scalar.
+`differences16` loads 16 RGB pixels of both frames, splits the channels with shuffles and reads each pixel's 12
+table values with `llvm.masked.gather`, with the same float32 operations in the same order as the scalar loop,
+so the results are bit-identical.
 `gather8` is the general form (8 values into a plain row), after which the compiler vectorises the
 arithmetic itself. `run_bounds16` appends a row's run starts and ends, and `append_where16` the positions of
 nonzero flags, by compressing vectors (`llvm.experimental.vector.compress`) and storing them whole (a loop
 that appends carries its count from element to element and is never vectorised); `fill8` stores one value
-eight times as one vector. On AVX-512 these are gather and compress instructions (the speed-ups in the README
-were measured there); elsewhere LLVM expands them into scalar code: the same results (the tests pass built
-for a generic x86-64, and for AVX2 with `NUMBA_CPU_NAME=haswell` and `NUMBA_CPU_FEATURES` set to Haswell's
-features: the CPU name alone keeps the host's AVX-512), at a speed not measured here.
+eight times as one vector. On AVX-512 these are gather and compress instructions; elsewhere LLVM expands them
+into scalar code with the same results (the tests pass built for a generic x86-64, and for AVX2 with
+`NUMBA_CPU_NAME=haswell` and `NUMBA_CPU_FEATURES` set to Haswell's features: the CPU name alone keeps the host's
+AVX-512). What they gain: docs/performance.md.
 
 The calls are written in LLVM's four-argument form (pointers, alignment, mask, pass-through); LLVM 22 drops the
 alignment operand and upgrades such calls itself. numba's on-disk cache of the modules in `app/decode/fast/` does
-not notice edits to this file: after changing it, delete `app/decode/fast/__pycache__`.
+not notice edits to this file (nor to `primitives.py`): after changing it, delete `app/decode/__pycache__` and
+`app/decode/fast/__pycache__`.
 """
 
 from __future__ import annotations

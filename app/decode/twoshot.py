@@ -95,6 +95,7 @@ class TwoShotDecoder:
         self.camera_response = camera_response
         self._luts: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._packed: dict[int, np.ndarray] = {}
+        self._bundles: dict[tuple, tuple] = {}
 
     def luts(self, dtype: np.dtype) -> tuple[np.ndarray, np.ndarray]:
         levels = 65536 if dtype == np.uint16 else 256
@@ -114,6 +115,21 @@ class TwoShotDecoder:
             pairs = fast.pair_tables(lin, dlin)
             self._packed[levels] = pairs if pairs.size else fast.pack_tables(lin, dlin)
         return lin, dlin, self._packed[levels]
+
+    def bundles(self, dtype: np.dtype, use_range: bool) -> tuple:
+        """What fast.twoshot_rows reads besides the frames, the geometry and the maps: (FrameTables, Classifier,
+        StripeCode, LabelSettings), built once per frame depth and parameters (the per-frame call passes them as
+        they are)."""
+        p = self.params
+        key = (np.dtype(dtype), p, use_range)
+        if key not in self._bundles:
+            tables = fast.FrameTables(*self.tables(dtype))
+            classifier = fast.Classifier(
+                self.unmix, np.float32(p.t_abs), np.float32(p.t_rel), np.float32(p.t_rel_edges), int(p.block)
+            )
+            settings = label_settings(self.spec, p.label, use_range)
+            self._bundles[key] = (tables, classifier, self.spec.stripe_code(), settings)
+        return self._bundles[key]
 
     @staticmethod
     def _check_pair(frame1: np.ndarray, frame2: np.ndarray) -> None:
@@ -187,11 +203,11 @@ class TwoShotDecoder:
             if planes.shape != (3, H, W):
                 raise InputError(f"frames are {W}x{H}, calibration camera is {planes.shape[2]}x{planes.shape[1]}")
             depth = np.empty((H, W), np.float32)
-        p, lp, spec = self.params, self.params.label, self.spec
+        p, spec = self.params, self.spec
         if p.segmentation not in SEGMENTATIONS:
             raise ValueError(f"segmentation {p.segmentation!r} is not one of {', '.join(SEGMENTATIONS)}")
-        lin, dlin, packed = self.tables(frame1.dtype)
         use_range = self.column_range is not None
+        tables, classifier, stripes, settings = self.bundles(frame1.dtype, use_range)
         lo, hi = self.column_range if use_range else (EMPTY_RANGE, EMPTY_RANGE)
         # all written by the kernel, row by row
         col_e = np.empty((H, W), np.float32)
@@ -205,12 +221,10 @@ class TwoShotDecoder:
         n_e, n_r, drop_e, drop_r, filled, clashes = fast.twoshot_rows(
             frame1,
             frame2,
-            fast.FrameTables(lin, dlin, packed),
-            fast.Classifier(
-                self.unmix, np.float32(p.t_abs), np.float32(p.t_rel), np.float32(p.t_rel_edges), int(p.block)
-            ),
-            spec.stripe_code(),
-            label_settings(spec, lp, use_range),
+            tables,
+            classifier,
+            stripes,
+            settings,
             SEGMENTATIONS.index(p.segmentation),
             fast.Geometry(lo, hi, planes, np.float32(w0), np.float32(w_span), depth),
             col_e,

@@ -85,8 +85,8 @@ def pixel_lines(nn, xa, nxp, shift, scratch):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False, forceinline=True)
-def write_chain(y, c, row_first, xa, nxp, lo_v, hi_v, line, settings, lo, hi, out):
-    """Write chain c's columns (pixels xa .. xa + nxp - 1 of row y, lines line, span [lo_v, hi_v]) into out.
+def write_chain(y, c, row_first, xa, xb, lo_v, hi_v, line, settings, lo, hi, out):
+    """Write chain c's columns (pixels xa .. xb of row y, lines line, span [lo_v, hi_v]) into out.
 
     When out.npx has room for chain c, its pixels are counted into npx[c] and, against row y - 1 (labelled, not
     yet checked), its vertical votes within tol into agree[c] and disagree[c], as row_votes would count the
@@ -94,6 +94,11 @@ def write_chain(y, c, row_first, xa, nxp, lo_v, hi_v, line, settings, lo, hi, ou
     use_range = settings.use_range
     col, chain, agree, disagree, npx, span, _ = out
     cy = y % chain.shape[0]
+    # 0 <= xa <= xb < W (the caller clamps them), restated for the compiler, which optimises this function before
+    # it is inlined: without the bounds every pixel index gets numba's negative-index fix and the loops stay scalar
+    xa = max(xa, 0)
+    xb = min(xb, col.shape[1] - 1)
+    nxp = xb - xa + 1
     if c >= npx.shape[0]:
         for q in range(nxp):
             xx = xa + q

@@ -121,7 +121,7 @@ def label_row(y, nr, runs, scratch, stripes, settings, lo, hi, out, n_chains):
         pixel_lines(nn, xa, nxp, shift, scratch)
         lo_v = np.float32(lo_v + shift)
         hi_v = np.float32(hi_v + shift)
-        write_chain(y, n_chains, row_first, xa, nxp, lo_v, hi_v, scratch.px_halves, settings, lo, hi, out)
+        write_chain(y, n_chains, row_first, xa, xb, lo_v, hi_v, scratch.px_halves, settings, lo, hi, out)
         if n_chains < span.shape[0]:
             span[n_chains, 0] = xa
             span[n_chains, 1] = xb
