@@ -7,6 +7,7 @@ data-dependent indices go through `gather` into plain rows, so that the loops af
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit, types
 from numba.extending import overload
 
@@ -31,7 +32,7 @@ def c_array(t: types.Type) -> bool:
     return isinstance(t, types.Array) and t.layout == "C"
 
 
-def fill_eight(arr, i, value):
+def fill_eight(arr: np.ndarray, i: int, value: int | float) -> None:
     """arr[i:i + 8] = value, the caller keeping i >= 0 and room (compiled only)."""
     raise NotImplementedError("numba only")
 
@@ -53,7 +54,7 @@ def _fill_eight_impl(arr, i, value):
     return scalar
 
 
-def gather(dst, table, idx, n):
+def gather(dst: np.ndarray, table: np.ndarray, idx: np.ndarray, n: int) -> None:
     """dst[i] = table[idx[i]] for i < n (compiled only: eight at a time with simd.gather8 where it takes the
     arrays, else a loop)."""
     raise NotImplementedError("numba only")
@@ -80,7 +81,7 @@ def _gather_impl(dst, table, idx, n):
     return scalar
 
 
-def run_bounds(code, rs, re, rc):
+def run_bounds(code: np.ndarray, rs: np.ndarray, re: np.ndarray, rc: np.ndarray) -> int:
     """The runs of equal code >= 0 along a row of codes (-1: no code): run j covers pixels rs[j] .. re[j] and
     has code rc[j]; returns how many. The arrays need room for 16 values past the last run (compiled only:
     sixteen pixels at a time with simd.run_bounds16 where it takes the arrays, else a loop)."""
@@ -112,7 +113,9 @@ def _run_bounds_impl(code, rs, re, rc):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
-def run_bounds_loop(code, x0, x1, rs, re, rc, ns, ne):
+def run_bounds_loop(
+    code: np.ndarray, x0: int, x1: int, rs: np.ndarray, re: np.ndarray, rc: np.ndarray, ns: int, ne: int
+) -> tuple[int, int]:
     """run_bounds over pixels x0 .. x1 - 1, appending at rs/rc[ns:] and re[ne:]; returns the new (ns, ne).
     Appends without a branch: runs change every few pixels, so a branch per change would be unpredictable."""
     W = code.shape[0]
@@ -128,7 +131,7 @@ def run_bounds_loop(code, x0, x1, rs, re, rc, ns, ne):
     return ns, ne
 
 
-def append_where(flags, n, out):
+def append_where(flags: np.ndarray, n: int, out: np.ndarray) -> int:
     """out[:m] = the positions i < n where flags[i] is nonzero; returns m. out needs room for 16 values past m
     (compiled only: sixteen at a time with simd.append_where16 where it takes the arrays, else a loop)."""
     raise NotImplementedError("numba only")

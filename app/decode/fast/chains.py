@@ -13,6 +13,7 @@ import numpy as np
 from numba import njit
 
 import app.jit  # noqa: F401  (numba's vector width, before anything compiles)
+from app.decode.fast.bundles import LabelScratch, LabelSettings, Runs
 from app.decode.fast.lookup import wrap
 from app.decode.primitives import append_where, gather
 
@@ -20,7 +21,7 @@ NO_COPY = -1.0  # copy_shift's answer when no copy wins
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False, forceinline=True)
-def chain_ends(nr, runs, period, scratch):
+def chain_ends(nr: int, runs: Runs, period: int, scratch: LabelScratch) -> int:
     """The chains among the row's nr labelled runs: chain f covers runs scratch.first_run[f] ..
     scratch.last_run[f]; returns how many. Marked in vectorised loops, then listed by append_where."""
     lab = scratch.label
@@ -42,7 +43,7 @@ def chain_ends(nr, runs, period, scratch):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
-def increasing(x, n):
+def increasing(x: np.ndarray, n: int) -> None:
     """x[:n] made strictly increasing in place: a value not above the one before becomes that one + 1e-3.
     A vectorised test first: the values nearly always increase already, and the fix is sequential. (In place:
     a copy from an array to itself defeats the compiler's overlap check.)"""
@@ -56,7 +57,7 @@ def increasing(x, n):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False, forceinline=True)
-def chain_nodes(i0, i1, runs, settings, scratch):
+def chain_nodes(i0: int, i1: int, runs: Runs, settings: LabelSettings, scratch: LabelScratch) -> int:
     """The nodes of the chain of runs i0..i1 into scratch.nodes_x (pixel) and nodes_v (projector column, before
     the copy's shift): stripe edges (edges_mode) or centres, made increasing and smoothed; returns how many.
 
@@ -137,7 +138,9 @@ def _smooth_nodes(nx, nn, smooth, sm):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False, forceinline=True)
-def copy_shift(y, nn, settings, lo, hi, scratch):
+def copy_shift(
+    y: int, nn: int, settings: LabelSettings, lo: np.ndarray, hi: np.ndarray, scratch: LabelScratch
+) -> float:
     """The copy vote of a chain of nn nodes in row y (allowed columns lo[y], hi[y]): the winning copy's shift
     (copy index * period * stripe width), NO_COPY without a clear winner (fewer than min_frac of the nodes, or
     a runner-up with more than half its votes).

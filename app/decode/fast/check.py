@@ -14,6 +14,7 @@ import numpy as np
 from numba import njit
 
 import app.jit  # noqa: F401  (numba's vector width, before anything compiles)
+from app.decode.fast.bundles import ChainMap
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -66,7 +67,7 @@ def vertical_check(out_col: np.ndarray, out_chain: np.ndarray, n_chains: int, to
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False, forceinline=True)
-def row_votes(out, y, tol):
+def row_votes(out: ChainMap, y: int, tol: float) -> None:
     """Add the vertical agreement between rows y - 1 and y of out (a ChainMap) to the chains of row y - 1
     (columns.write_chain counted the chains of row y, their pixels and their votes against row y - 1).
 
@@ -92,7 +93,7 @@ def row_votes(out, y, tol):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
-def drop_chains(y, out, min_support):
+def drop_chains(y: int, out: ChainMap, min_support: float) -> int:
     """vertical_check's verdict on the chains of row y of out, which have all their votes; returns how many it
     dropped."""
     col, chain, agree, disagree, npx, span, first = out
@@ -109,7 +110,7 @@ def drop_chains(y, out, min_support):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
-def finish_row(y, ev, ru, check, min_support, stats):
+def finish_row(y: int, ev: ChainMap, ru: ChainMap, check: bool, min_support: float, stats: np.ndarray) -> None:
     """Row y of the maps ev (events) and ru (runs) has all its vertical votes: drop its unconfirmed chains
     (check), then merge ru into ev: a value of one where the other has none, none where both differ by more than
     0.5 px. A value taken from ru gets chain id (runs chain + cap), cap = ev's chain capacity. stats: dropped

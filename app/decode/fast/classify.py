@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 
 import app.jit  # noqa: F401  (numba's vector width, before anything compiles)
-from app.decode.fast.bundles import ClassifyScratch
+from app.decode.fast.bundles import Classifier, ClassifyScratch, FrameTables
 from app.decode.fast.differences import differences
 from app.decode.simd import spread8x2
 
@@ -207,7 +207,16 @@ def classify_scratch(m: int, W: int, block: int) -> ClassifyScratch:
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False, forceinline=True)
-def classify_row(f1, f2, y, tables, classifier, scratch, want_thr, ahead):
+def classify_row(
+    f1: np.ndarray,
+    f2: np.ndarray,
+    y: int,
+    tables: FrameTables,
+    classifier: Classifier,
+    scratch: ClassifyScratch,
+    want_thr: bool,
+    ahead: tuple,
+) -> None:
     """twoshot_classify for row y of the frames: codes into scratch.code, the unmixed differences into
     scratch.rows[0:m] and, with want_thr, the zero-crossing sign thresholds into scratch.rows[m:2m]. ahead: rows
     to prefetch meanwhile (see differences).

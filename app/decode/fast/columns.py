@@ -13,6 +13,7 @@ import numpy as np
 from numba import njit
 
 import app.jit  # noqa: F401  (numba's vector width, before anything compiles)
+from app.decode.fast.bundles import ChainMap, LabelScratch, LabelSettings
 from app.decode.primitives import fill_eight, gather
 
 # Pixels beyond a chain's outer stripe edges keep a value up to this many stripes out (the end stripe's
@@ -33,7 +34,16 @@ def _column_at(q, line, lo_v, hi_v, use_range, lo, hi, y, xx):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
-def segment_values(nx, nn, xa, nxp, first, seg_of, vals, out):
+def segment_values(
+    nx: np.ndarray,
+    nn: int,
+    xa: int,
+    nxp: int,
+    first: np.ndarray,
+    seg_of: np.ndarray,
+    vals: np.ndarray,
+    out: np.ndarray,
+) -> None:
     """out[q] = vals[the segment of pixel xa + q] (q < nxp), the segments being those between the chain's nodes
     nx[:nn] (increasing): the one after the last interior node left of the pixel (the first segment extends
     left, the last right), i.e. the last interior node r whose first pixel right of it, s_r, is <= the pixel
@@ -70,7 +80,7 @@ def segment_values(nx, nn, xa, nxp, first, seg_of, vals, out):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False, forceinline=True)
-def pixel_lines(nn, xa, nxp, shift, scratch):
+def pixel_lines(nn: int, xa: int, nxp: int, shift: float, scratch: LabelScratch) -> None:
     """scratch.px_halves = the line (column, slope: a float32 pair) of each of the chain's nxp pixels from xa,
     from its nn nodes shifted by the copy's shift."""
     nx = scratch.nodes_x
@@ -85,7 +95,20 @@ def pixel_lines(nn, xa, nxp, shift, scratch):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False, forceinline=True)
-def write_chain(y, c, row_first, xa, xb, lo_v, hi_v, line, settings, lo, hi, out):
+def write_chain(
+    y: int,
+    c: int,
+    row_first: int,
+    xa: int,
+    xb: int,
+    lo_v: np.float32,
+    hi_v: np.float32,
+    line: np.ndarray,
+    settings: LabelSettings,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    out: ChainMap,
+) -> None:
     """Write chain c's columns (pixels xa .. xb of row y, lines line, span [lo_v, hi_v]) into out.
 
     When out.npx has room for chain c, its pixels are counted into npx[c] and, against row y - 1 (labelled, not

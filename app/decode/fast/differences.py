@@ -63,7 +63,18 @@ def pair_tables(lin: np.ndarray, dlin: np.ndarray) -> np.ndarray:
     return pk
 
 
-def differences(f1, f2, y, lin, dlin, pk, unmix, ta, out, ahead):
+def differences(
+    f1: np.ndarray,
+    f2: np.ndarray,
+    y: int,
+    lin: np.ndarray,
+    dlin: np.ndarray,
+    pk: np.ndarray,
+    unmix: np.ndarray,
+    ta: np.float32,
+    out: np.ndarray,
+    ahead: tuple,
+) -> None:
     """Row y's unmixed differences and noise floors (ta times the noise slopes' weighted sum) of the two pattern
     channels into out[0:4] (compiled only: the gathers of simd.differences16 for C-contiguous frames and
     tables, else the loop). pk: pack_tables or pair_tables (or an empty table). ahead: (2-D array, row) pairs

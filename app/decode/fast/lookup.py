@@ -11,18 +11,21 @@ import numpy as np
 from numba import njit
 
 import app.jit  # noqa: F401  (numba's vector width, before anything compiles)
+from app.decode.fast.bundles import LabelScratch, LabelSettings, Runs, StripeCode
 from app.decode.primitives import gather
 
 
 @njit(cache=True, nogil=True, inline="always")
-def wrap(v, period):
+def wrap(v: int, period: int) -> int:
     """v mod period for 0 <= v < 2 * period, without a division; of v's type when both are int32 (numba would
     widen the difference to int64)."""
     return type(v)(v - period) if v >= period else v
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
-def window_positions(nr, rc, link, table, A, k, pos, keys):
+def window_positions(
+    nr: int, rc: np.ndarray, link: np.ndarray, table: np.ndarray, A: int, k: int, pos: np.ndarray, keys: np.ndarray
+) -> None:
     """pos[j] = the sequence position of the window of runs j..j+k-1 (codes rc, links link) through the table,
     -1 where the window is not k linked runs or not in the sequence; keys: scratch for nr values.
 
@@ -88,7 +91,7 @@ def _merge_labels(a, b):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
-def confirmed_labels(nr, pos, lab, k, period, cw):
+def confirmed_labels(nr: int, pos: np.ndarray, lab: np.ndarray, k: int, period: int, cw: np.ndarray) -> None:
     """lab[i] = the label of run i from the confirmed windows over it (a window confirmed by an adjacent one
     that continues it), -1 where none, -2 where they disagree. cw: scratch for nr + k - 1 values (int32).
 
@@ -147,7 +150,7 @@ def confirmed_labels(nr, pos, lab, k, period, cw):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False, forceinline=True)
-def window_labels(nr, runs, stripes, settings, scratch):
+def window_labels(nr: int, runs: Runs, stripes: StripeCode, settings: LabelSettings, scratch: LabelScratch) -> None:
     """scratch.label[:nr] = the confirmed labels of the row's nr runs (see confirmed_labels)."""
     A = stripes.link_ok.shape[0]
     window_positions(nr, runs.code, runs.link, stripes.table, A, settings.k, scratch.pos, scratch.keys)

@@ -78,7 +78,18 @@ def row_scratch(n: int, W: int, n_copies: int) -> tuple[Runs, LabelScratch]:
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False, forceinline=True)
-def label_row(y, nr, runs, scratch, stripes, settings, lo, hi, out, n_chains):
+def label_row(
+    y: int,
+    nr: int,
+    runs: Runs,
+    scratch: LabelScratch,
+    stripes: StripeCode,
+    settings: LabelSettings,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    out: ChainMap,
+    n_chains: int,
+) -> int:
     """Windows -> confirmed labels -> chains -> interpolated columns of row y's nr runs into out (a ChainMap), the
     new chains numbered from n_chains; returns the next chain number. out.span[c] = (first, last) pixel chain c
     may write, when span has room for it; with room in out.npx, the chain's pixels and vertical votes are

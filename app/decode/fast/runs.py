@@ -13,7 +13,7 @@ from numba import njit, types
 from numba.extending import overload
 
 import app.jit  # noqa: F401  (numba's vector width, before anything compiles)
-from app.decode.fast.bundles import EventScratch, LinkScratch, Transitions
+from app.decode.fast.bundles import EventScratch, LinkScratch, Runs, Transitions
 from app.decode.primitives import JIT, append_where, c_array, gather, run_bounds
 
 SLOW_STEPS = 5  # the edge search's intervals without a branch: a gap of up to 2 pixels (LabelParams.gap_max)
@@ -179,7 +179,7 @@ def _edge_search(s, w, xa, xb, mid):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False, forceinline=True)
-def pixel_runs(code, fr, wts, trans, gap_max, runs):
+def pixel_runs(code: np.ndarray, fr: np.ndarray, wts: np.ndarray, trans: Transitions, gap_max: int, runs: Runs) -> int:
     """The runs of equal code along a row (code (W,), differences fr (C, W)) into runs, with the link and
     sub-pixel edge (zero crossing) between neighbours; returns how many. trans: transitions(wts, link_ok, n).
     runs' rows need room for W + 16 values."""
@@ -342,7 +342,7 @@ def _event_runs2(ev, n0, n1, runs):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
-def event_runs(fr, tr, gap_max, ev, runs):
+def event_runs(fr: np.ndarray, tr: np.ndarray, gap_max: int, ev: EventScratch, runs: Runs) -> int:
     """Two-shot stripes of a row from the zero crossings of each channel's difference (fr, tr: (C, W)) into runs;
     returns how many.
 
