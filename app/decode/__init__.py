@@ -4,6 +4,6 @@
 - `oneshot.OneShotDecoder`: R/G/B colour classification of one frame (section 3).
 - `graycode.GrayCodeDecoder` / `graycode.decode_graycode`: multi-shot reference, columns and rows.
 - `pipeline.FrameSetDecoder`: any scheme, plus triangulation, from a pattern export's metadata.
-The per-pixel and per-row loops are compiled with numba (`kernels.py`); `reference.py` is the
+The per-pixel and per-row loops are compiled with numba (`fast/`); `reference.py` is the
 plain numpy/Python two-shot reference the tests compare them with.
 """

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from app.decode import kernels
+from app.decode import fast
 from app.decode.colour import linearisation, unmixing_matrix
 from app.decode.mirror import columns_run_backwards, mirror_back, mirror_image, mirror_range
 from app.decode.stripemap import StripeMap
@@ -85,7 +85,7 @@ class OneShotDecoder:
         code = np.empty((H, W), np.int8)
         feat = np.empty((H, W, 3), np.float32)
         p = self.params
-        kernels.oneshot_classify(
+        fast.oneshot_classify(
             linear, self.unmix, self.rows, np.float32(p.t_abs), np.float32(p.t_margin), p.block, p.use_hue, code, feat
         )
         return code, feat

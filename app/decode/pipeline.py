@@ -8,8 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.decode.colour import camera_gamma_of
+from app.decode.fast import average_frames
 from app.decode.graycode import GrayCodeDecoder
-from app.decode.kernels import average_frames
 from app.decode.oneshot import OneShotDecoder
 from app.decode.stripemap import StripeMap
 from app.decode.twoshot import SEGMENTATIONS, TwoShotDecoder, TwoShotParams

@@ -2,22 +2,23 @@
 vector IR).
 
 numba never vectorises a loop that reads a table at data-dependent indices and stores into another array:
-without type-based alias information LLVM must assume a store may change the table, so the loop stays scalar
-(about 45 instructions per pixel for the two-shot differences). `differences16` loads 16 RGB pixels of both
-frames, splits the channels with shuffles and reads each pixel's 12 table values with `llvm.masked.gather`,
-with the same float32 operations in the same order as the scalar loop, so the results are bit-identical.
+without type-based alias information LLVM must assume a store may change the table, so the loop stays scalar.
+`differences16` loads 16 RGB pixels of both frames, splits the channels with shuffles and reads each pixel's 12
+table values with `llvm.masked.gather`, with the same float32 operations in the same order as the scalar loop,
+so the results are bit-identical.
 `gather8` is the general form (8 values into a plain row), after which the compiler vectorises the
 arithmetic itself. `run_bounds16` appends a row's run starts and ends, and `append_where16` the positions of
 nonzero flags, by compressing vectors (`llvm.experimental.vector.compress`) and storing them whole (a loop
 that appends carries its count from element to element and is never vectorised); `fill8` stores one value
-eight times as one vector. On AVX-512 these are gather and compress instructions (the speed-ups in the README
-were measured there); elsewhere LLVM expands them into scalar code: the same results (the tests pass built
-for a generic x86-64, and for AVX2 with `NUMBA_CPU_NAME=haswell` and `NUMBA_CPU_FEATURES` set to Haswell's
-features: the CPU name alone keeps the host's AVX-512), at a speed not measured here.
+eight times as one vector. On AVX-512 these are gather and compress instructions; elsewhere LLVM expands them
+into scalar code with the same results (the tests pass built for a generic x86-64, and for AVX2 with
+`NUMBA_CPU_NAME=haswell` and `NUMBA_CPU_FEATURES` set to Haswell's features: the CPU name alone keeps the host's
+AVX-512). What they gain: docs/performance.md.
 
 The calls are written in LLVM's four-argument form (pointers, alignment, mask, pass-through); LLVM 22 drops the
-alignment operand and upgrades such calls itself. numba's on-disk cache of `kernels.py` does not notice edits
-to this file: after changing it, touch `kernels.py` (or delete `app/decode/__pycache__`).
+alignment operand and upgrades such calls itself. numba's on-disk cache of the modules in `app/decode/fast/` does
+not notice edits to this file (nor to `primitives.py`): after changing it, delete `app/decode/__pycache__` and
+`app/decode/fast/__pycache__`.
 """
 
 from __future__ import annotations
@@ -114,6 +115,16 @@ def _c(t: types.Type, ndim: int, dtypes: tuple) -> bool:
     return isinstance(t, types.Array) and t.ndim == ndim and t.layout == "C" and t.dtype in dtypes
 
 
+def _coefficients(coefs: types.Type) -> bool:
+    """The unmixing coefficients the differences take: a tuple of seven float32 (the two unmixing rows, then the
+    half noise floor)."""
+    return isinstance(coefs, types.UniTuple) and coefs.count == 7 and coefs.dtype == types.float32
+
+
+def _coefficient_values(builder: ir.IRBuilder, coefs: ir.Value) -> list[ir.Value]:
+    return [builder.extract_value(coefs, i) for i in range(7)]
+
+
 def differences16_takes(frame, lin, dlin, unmix, ta, out) -> bool:
     """Whether differences16 can take rows of these (numba) types: C-contiguous uint8/uint16 frames (H, W, C),
     float32 tables (3, levels), float32 unmixing rows and noise floor, a float32 C-contiguous output. (The
@@ -191,29 +202,28 @@ def _mix_store(
 
 
 @intrinsic
-def differences16_pairs(typingctx, a, b, pairs, u00, u01, u02, u10, u11, u12, ta, out, x):
+def differences16_pairs(typingctx, a, b, pairs, coefs, out, x):
     """differences16 for 8-bit frames from a table over value pairs: entry (c * stride) + 256 a + b holds the
     float32 pair (lin[b] - lin[a], dlin[b] + dlin[a]) of channel c (see pair_tables), stride 65536, or 0 when
     the three channels share one table. One 8-byte gather per channel for both frames: half the gathered
     elements of the packed tables (and a few hundred hot entries of the 512 KB table in the L1 cache: the
     stripes' values cluster). Same values: the pair's float32 difference and sum are the ones computed here
-    from two gathers."""
-    coefs = (u00, u01, u02, u10, u11, u12, ta)
+    from two gathers. coefs: see _coefficients."""
     if not (
         _c(a, 2, (types.uint8,))
         and b == a
         and _c(pairs, 1, (types.int64,))
-        and all(c == types.float32 for c in coefs)
+        and _coefficients(coefs)
         and _c(out, 2, (types.float32,))
         and isinstance(x, types.Integer)
     ):
         return None
-    sig = types.void(a, b, pairs, *coefs, out, x)
+    sig = types.void(a, b, pairs, coefs, out, x)
 
     def codegen(context, builder, signature, args):
         kinds = signature.args
         xa = context.cast(builder, args[-1], kinds[-1], types.int64)
-        arr = [context.make_array(kinds[i])(context, builder, args[i]) for i in (0, 1, 2, 10)]
+        arr = [context.make_array(kinds[i])(context, builder, args[i]) for i in (0, 1, 2, 4)]
         pa, pb, ppair, pout = (ar.data for ar in arr)
         width = builder.extract_value(arr[3].shape, 1)
         chans = _channels(builder, pa, pb, ir.IntType(8), xa)
@@ -232,39 +242,38 @@ def differences16_pairs(typingctx, a, b, pairs, u00, u01, u02, u10, u11, u12, ta
             diff, noise = _gather_pairs(builder, ppair, idx)
             e.append(diff)
             n.append(noise)
-        _mix_store(builder, e, n, args[3:10], pout, width, xa)
+        _mix_store(builder, e, n, _coefficient_values(builder, args[3]), pout, width, xa)
         return context.get_dummy_value()
 
     return sig, codegen
 
 
 @intrinsic
-def differences16(typingctx, a, b, lin, dlin, u00, u01, u02, u10, u11, u12, ta, out, x):
+def differences16(typingctx, a, b, lin, dlin, coefs, out, x):
     """Pixels x .. x + 15 of _row_differences: a, b the two frames' rows (W, 3) uint8/uint16, C-contiguous;
     lin, dlin (3 * levels,) float32, the channels' tables one after the other, or lin int64 (3 * levels,): both
     tables packed, each entry the float32 pair (lin, dlin) (see pack_tables; dlin is then not read): one 8-byte
-    gather per frame and channel instead of two 4-byte ones, half the gathered elements; u the two unmixing
-    rows and ta the half noise floor, float32; out (>= 4, W) float32 C-contiguous receives the differences d0,
+    gather per frame and channel instead of two 4-byte ones, half the gathered elements; coefs the two unmixing
+    rows and the half noise floor (see _coefficients); out (>= 4, W) float32 C-contiguous receives the differences d0,
     d1 and the noise floors n0, n1 in its first four rows. The caller keeps x + 16 <= W."""
-    coefs = (u00, u01, u02, u10, u11, u12, ta)
     packed = _c(lin, 1, (types.int64,))
     if not (
         _c(a, 2, (types.uint8, types.uint16))
         and b == a
         and (packed or _c(lin, 1, (types.float32,)))
         and _c(dlin, 1, (types.float32, types.int64))
-        and all(c == types.float32 for c in coefs)
+        and _coefficients(coefs)
         and _c(out, 2, (types.float32,))
         and isinstance(x, types.Integer)
     ):
         return None
-    sig = types.void(a, b, lin, dlin, *coefs, out, x)
+    sig = types.void(a, b, lin, dlin, coefs, out, x)
     elem = ir.IntType(a.dtype.bitwidth)
 
     def codegen(context, builder, signature, args):
         kinds = signature.args
         xa = context.cast(builder, args[-1], kinds[-1], types.int64)
-        arr = [context.make_array(kinds[i])(context, builder, args[i]) for i in (0, 1, 2, 3, 11)]
+        arr = [context.make_array(kinds[i])(context, builder, args[i]) for i in (0, 1, 2, 3, 5)]
         pa, pb, plin, pdlin, pout = (ar.data for ar in arr)
         width = builder.extract_value(arr[4].shape, 1)
         chans = _channels(builder, pa, pb, elem, xa)
@@ -292,7 +301,7 @@ def differences16(typingctx, a, b, lin, dlin, u00, u01, u02, u10, u11, u12, ta, 
                     _masked_gather(builder, pdlin, ib, _F32, "f32"), _masked_gather(builder, pdlin, ia, _F32, "f32")
                 )
             )
-        _mix_store(builder, e, n, args[4:11], pout, width, xa)
+        _mix_store(builder, e, n, _coefficient_values(builder, args[4]), pout, width, xa)
         return context.get_dummy_value()
 
     return sig, codegen

@@ -13,11 +13,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from app.decode import kernels
+from app.decode import fast
 from app.decode.colour import channel_rows, linearisation, unmixing_matrix
 from app.decode.mirror import columns_run_backwards, mirror_back, mirror_image, mirror_range
 from app.decode.stripemap import StripeMap
-from app.decode.windows import EMPTY_RANGE, LabelParams, WindowSpec, window_lookup
+from app.decode.windows import EMPTY_RANGE, LabelParams, WindowSpec, label_settings, window_lookup
 from app.errors import InputError
 
 
@@ -39,7 +39,7 @@ class TwoShotParams:
     label: LabelParams = field(default_factory=LabelParams)
 
 
-SEGMENTATIONS = ("events", "runs", "both")  # kernels.twoshot_rows' mode numbers
+SEGMENTATIONS = fast.MODES  # fast.twoshot_rows' mode numbers
 
 # a triangulator's closed-form geometry: Moebius planes (3, H, W) float32, w0, w_span (Triangulator.moebius_geometry)
 MoebiusGeometry = tuple[np.ndarray, float, float]
@@ -95,6 +95,7 @@ class TwoShotDecoder:
         self.camera_response = camera_response
         self._luts: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._packed: dict[int, np.ndarray] = {}
+        self._bundles: dict[tuple, tuple] = {}
 
     def luts(self, dtype: np.dtype) -> tuple[np.ndarray, np.ndarray]:
         levels = 65536 if dtype == np.uint16 else 256
@@ -106,14 +107,29 @@ class TwoShotDecoder:
         return self._luts[levels]
 
     def tables(self, dtype: np.dtype) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """luts(dtype) and the table the row kernel reads them from (kernels.pair_tables for 8-bit frames: one
-        gather per channel for both frames; else kernels.pack_tables), built once per frame depth."""
+        """luts(dtype) and the table the row kernel reads them from (fast.pair_tables for 8-bit frames: one
+        gather per channel for both frames; else fast.pack_tables), built once per frame depth."""
         lin, dlin = self.luts(dtype)
         levels = lin.shape[1]
         if levels not in self._packed:
-            pairs = kernels.pair_tables(lin, dlin)
-            self._packed[levels] = pairs if pairs.size else kernels.pack_tables(lin, dlin)
+            pairs = fast.pair_tables(lin, dlin)
+            self._packed[levels] = pairs if pairs.size else fast.pack_tables(lin, dlin)
         return lin, dlin, self._packed[levels]
+
+    def bundles(self, dtype: np.dtype, use_range: bool) -> tuple:
+        """What fast.twoshot_rows reads besides the frames, the geometry and the maps: (FrameTables, Classifier,
+        StripeCode, LabelSettings), built once per frame depth and parameters (the per-frame call passes them as
+        they are)."""
+        p = self.params
+        key = (np.dtype(dtype), p, use_range)
+        if key not in self._bundles:
+            tables = fast.FrameTables(*self.tables(dtype))
+            classifier = fast.Classifier(
+                self.unmix, np.float32(p.t_abs), np.float32(p.t_rel), np.float32(p.t_rel_edges), int(p.block)
+            )
+            settings = label_settings(self.spec, p.label, use_range)
+            self._bundles[key] = (tables, classifier, self.spec.stripe_code(), settings)
+        return self._bundles[key]
 
     @staticmethod
     def _check_pair(frame1: np.ndarray, frame2: np.ndarray) -> None:
@@ -133,7 +149,7 @@ class TwoShotDecoder:
         noise = np.empty((H, W, m), np.float32)
         lin, dlin = self.luts(frame1.dtype)
         p = self.params
-        kernels.twoshot_classify(
+        fast.twoshot_classify(
             frame1,
             frame2,
             lin,
@@ -187,11 +203,11 @@ class TwoShotDecoder:
             if planes.shape != (3, H, W):
                 raise InputError(f"frames are {W}x{H}, calibration camera is {planes.shape[2]}x{planes.shape[1]}")
             depth = np.empty((H, W), np.float32)
-        p, lp, spec = self.params, self.params.label, self.spec
+        p, spec = self.params, self.spec
         if p.segmentation not in SEGMENTATIONS:
             raise ValueError(f"segmentation {p.segmentation!r} is not one of {', '.join(SEGMENTATIONS)}")
-        lin, dlin, packed = self.tables(frame1.dtype)
         use_range = self.column_range is not None
+        tables, classifier, stripes, settings = self.bundles(frame1.dtype, use_range)
         lo, hi = self.column_range if use_range else (EMPTY_RANGE, EMPTY_RANGE)
         # all written by the kernel, row by row
         col_e = np.empty((H, W), np.float32)
@@ -202,43 +218,19 @@ class TwoShotDecoder:
         # the second map and the merge are used by "both" only
         col_r = np.empty((H, W), np.float32) if both else EMPTY_RANGE
         chain_r = np.empty((2, W), np.int32) if both else np.full((1, 1), -1, np.int32)
-        n_e, n_r, drop_e, drop_r, filled, clashes = kernels.twoshot_rows(
+        n_e, n_r, drop_e, drop_r, filled, clashes = fast.twoshot_rows(
             frame1,
             frame2,
-            lin,
-            dlin,
-            packed,
-            self.unmix,
-            np.float32(p.t_abs),
-            np.float32(p.t_rel),
-            np.float32(p.t_rel_edges),
-            p.block,
-            spec.weights,
-            spec.link_ok,
-            spec.table,
-            spec.k,
-            spec.period,
-            spec.stripe_width,
-            spec.n_copies,
-            spec.proj_width,
-            lp.gap_max,
-            lo,
-            hi,
-            use_range,
-            lp.edges,
-            lp.min_frac,
-            lp.smooth,
-            lp.vertical_tol,
-            lp.min_support,
+            tables,
+            classifier,
+            stripes,
+            settings,
             SEGMENTATIONS.index(p.segmentation),
+            fast.Geometry(lo, hi, planes, np.float32(w0), np.float32(w_span), depth),
             col_e,
             chain_e,
             col_r,
             chain_r,
-            planes,
-            w0,
-            w_span,
-            depth,
         )
         sm = StripeMap(
             col_e,

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from app.decode import kernels
+from app.decode import fast
 from app.decode.stripemap import StripeMap
 from app.patterns import window_table
 
@@ -27,7 +27,7 @@ def window_lookup(sequence: Sequence[int], k: int, alphabet: int) -> np.ndarray:
 
 @dataclass(frozen=True)
 class WindowSpec:
-    """Everything `kernels.label_rows` needs to know about a stripe sequence."""
+    """Everything `fast.label_rows` needs to know about a stripe sequence."""
 
     table: np.ndarray  # (A**k,) int32
     link_ok: np.ndarray  # (A, A) bool: codes allowed to be neighbouring stripes
@@ -41,6 +41,10 @@ class WindowSpec:
     def n_copies(self) -> int:
         return -(-self.proj_width // (self.period * self.stripe_width))
 
+    def stripe_code(self) -> fast.StripeCode:
+        """The tables the compiled decoders read."""
+        return fast.StripeCode(self.table, self.link_ok, self.weights)
+
 
 @dataclass(frozen=True)
 class LabelParams:
@@ -51,6 +55,24 @@ class LabelParams:
     min_frac: float = 0.7  # share of a chain's pixels inside the depth range for its copy to be chosen
     smooth: int = 2  # sub-pixel nodes: local line fit over +-smooth neighbouring nodes (0 = raw)
     events: bool = False  # two-shot: stripes from per-channel zero crossings instead of pixel runs
+
+
+def label_settings(spec: WindowSpec, params: LabelParams, use_range: bool) -> fast.LabelSettings:
+    """The labelling parameters the compiled decoders read."""
+    return fast.LabelSettings(
+        int(spec.k),
+        int(spec.period),
+        int(spec.stripe_width),
+        int(spec.n_copies),
+        int(spec.proj_width),
+        int(params.gap_max),
+        float(params.min_frac),
+        int(params.smooth),
+        float(params.vertical_tol),
+        float(params.min_support),
+        bool(params.edges),
+        bool(use_range),
+    )
 
 
 def label(
@@ -67,32 +89,21 @@ def label(
     chain = np.full((H, W), -1, np.int32)
     use_range = column_range is not None
     lo, hi = column_range if use_range else (EMPTY_RANGE, EMPTY_RANGE)
-    n = kernels.label_rows(
+    n = fast.label_rows(
         code,
         feat,
-        spec.weights,
-        spec.link_ok,
-        spec.table,
-        spec.k,
-        spec.period,
-        spec.stripe_width,
-        spec.n_copies,
-        spec.proj_width,
-        params.gap_max,
+        thresholds if thresholds is not None else np.zeros((1, 1, 1), np.float32),
+        params.events,
+        spec.stripe_code(),
+        label_settings(spec, params, use_range),
         lo,
         hi,
-        use_range,
-        params.edges,
-        params.min_frac,
-        params.events,
-        thresholds if thresholds is not None else np.zeros((1, 1, 1), np.float32),
-        params.smooth,
         col,
         chain,
     )
     dropped = 0
     if params.vertical_tol > 0:
-        dropped = kernels.vertical_check(col, chain, n, params.vertical_tol, params.min_support)
+        dropped = fast.vertical_check(col, chain, n, params.vertical_tol, params.min_support)
     conf = np.where(np.isfinite(col), np.float32(1.0), np.float32(0.0))
     return StripeMap(
         col,

@@ -8,7 +8,7 @@ import sys
 PROBE = """
 import numpy as np
 from numba import njit
-import app.decode.kernels
+import app.decode.fast.rows
 from numba.core import codegen, registry
 
 @njit

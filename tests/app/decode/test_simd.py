@@ -7,7 +7,10 @@ import pytest
 from numba import njit
 from synth import make_calibration, plane_depth, render
 
-from app.decode import kernels
+from app.decode import fast
+from app.decode.fast import chains, classify, columns, differences, lookup, rows, runs
+from app.decode.fast.bundles import ChainMap, Classifier, FrameTables, LabelSettings, Runs, StripeCode
+from app.decode.primitives import append_where, fill_eight, run_bounds
 from app.decode.simd import gather8, spread8x2
 from app.decode.twoshot import TwoShotDecoder, two_shot_spec
 from app.patterns import two_shot_patterns
@@ -19,7 +22,7 @@ UNPACKED = np.empty(0, np.int64)  # no packed tables: the two-gather path
 def _dispatched(f1, f2, lin, dlin, unmix, ta, out, pk=UNPACKED):
     for y in range(f1.shape[0]):
         ahead = ((lin, 0),)  # rows the pair path prefetches (a hint only: any row)
-        kernels._differences(f1, f2, y, lin, dlin, pk, unmix, ta, out[y], ahead)
+        differences.differences(f1, f2, y, lin, dlin, pk, unmix, ta, out[y], ahead)
 
 
 def _packed(lin, dlin):
@@ -31,9 +34,9 @@ def _packed(lin, dlin):
 def _scalar(f1, f2, lin, dlin, u, ta, out):
     for y in range(f1.shape[0]):
         o = out[y]
-        kernels._row_differences(
-            f1[y], f2[y], lin[0], lin[1], lin[2], dlin[0], dlin[1], dlin[2],
-            u[0, 0], u[0, 1], u[0, 2], u[1, 0], u[1, 1], u[1, 2], ta, o[0], o[1], o[2], o[3],
+        differences._row_differences(
+            f1[y], f2[y], (lin[0], lin[1], lin[2]), (dlin[0], dlin[1], dlin[2]),
+            (u[0, 0], u[0, 1], u[0, 2], u[1, 0], u[1, 1], u[1, 2], ta), (o[0], o[1], o[2], o[3]),
         )  # fmt: skip
 
 
@@ -58,7 +61,7 @@ def test_gathered_differences_equal_the_scalar_loop(dtype, width, tables):
     want = np.full((3, 6, width), np.nan, np.float32)
     pk = {"plain": UNPACKED, "packed": _packed(lin, dlin)}.get(tables)
     if pk is None:  # (16-bit tables have no pair table: the plain gathers)
-        pk = kernels.pair_tables(lin, dlin)
+        pk = fast.pair_tables(lin, dlin)
         assert pk.size == (0 if dtype == np.uint16 else (1 if tables == "shared pairs" else 3) * 65536)
     _dispatched(f1, f2, lin, dlin, unmix, ta, got, pk)
     _scalar(f1, f2, lin, dlin, unmix, ta, want)
@@ -70,7 +73,7 @@ def test_pair_table_entries_are_the_differences_and_noise_sums_of_value_pairs():
     rng = np.random.default_rng(3)
     lin = (255 * rng.random((3, 256))).astype(np.float32)
     dlin = rng.random((3, 256)).astype(np.float32)
-    pairs = kernels.pair_tables(lin, dlin).view(np.float32).reshape(3, 256, 256, 2)
+    pairs = fast.pair_tables(lin, dlin).view(np.float32).reshape(3, 256, 256, 2)
     np.testing.assert_array_equal(pairs[..., 0], lin[:, None, :] - lin[:, :, None])  # [c, a, b] = lin[b] - lin[a]
     np.testing.assert_array_equal(pairs[..., 1], dlin[:, None, :] + dlin[:, :, None])
 
@@ -135,8 +138,8 @@ def _runs(code, fr, wts, link_ok, gap_max):
     rc = np.zeros(n, np.int64)
     link = np.zeros(n, np.bool_)
     edge = np.zeros(n, np.float64)
-    trans = kernels._transitions(wts, link_ok, n)
-    nr = kernels._pixel_runs(code, fr, wts, trans, gap_max, rs, re, rc, link, edge)
+    trans = runs.transitions(wts, link_ok, n)
+    nr = runs.pixel_runs(code, fr, wts, trans, gap_max, Runs(rs, re, rc, link, edge, np.zeros(n, np.int64)))
     return rs[:nr], re[:nr], rc[:nr], link[:nr], edge[:nr]
 
 
@@ -160,16 +163,13 @@ def test_gathered_link_pass_equals_the_loop():
 
 @njit(cache=False)
 def _fused_codes(f1, f2, lin, dlin, pk, unmix, t_abs, t_rel, block, code):
-    W = f1.shape[1]
-    m = unmix.shape[0]
-    nb = (W + block - 1) // block
-    bmax = np.empty((2 * max(m, 2), nb + 2), np.float32)
-    tmp = np.empty((2 * m + 2, W), np.float32)
+    scratch = classify.classify_scratch(unmix.shape[0], f1.shape[1], block)
+    tables = FrameTables(lin, dlin, pk)
+    classifier = Classifier(unmix, t_abs, t_rel, t_rel, block)
     for y in range(f1.shape[0]):
-        ahead = ((bmax, 0),)  # (a row to prefetch: any)
-        kernels._classify_row(
-            f1, f2, y, lin, dlin, pk, unmix, t_abs, t_rel, t_rel, block, bmax, tmp, False, code[y], ahead
-        )
+        ahead = ((scratch.block_max, 0),)  # (a row to prefetch: any)
+        classify.classify_row(f1, f2, y, tables, classifier, scratch, False, ahead)
+        code[y] = scratch.code
 
 
 @pytest.mark.parametrize("tables", ["packed", "pairs"])
@@ -190,9 +190,9 @@ def test_row_classification_skips_nan_like_the_specification(width, channels, ta
     feat = np.empty((6, width, channels), np.float32)
     noise = np.empty((6, width, channels), np.float32)
     args = (np.float32(2.0), np.float32(0.03))
-    kernels.twoshot_classify(f1, f2, lin, dlin, unmix, *args, np.float32(0.03), 8, want, feat, noise)
+    fast.twoshot_classify(f1, f2, lin, dlin, unmix, *args, np.float32(0.03), 8, want, feat, noise)
     got = np.empty((6, width), np.int8)
-    pk = kernels.pair_tables(lin, dlin) if tables == "pairs" else kernels.pack_tables(lin, dlin)
+    pk = fast.pair_tables(lin, dlin) if tables == "pairs" else fast.pack_tables(lin, dlin)
     assert pk.size == (3 * 65536 if tables == "pairs" else 3 * 256)  # (the NaN makes the channels' tables differ)
     _fused_codes(f1, f2, lin, dlin, pk, unmix, *args, 8, got)
     assert np.isnan(feat[:, ::8, 0]).all() and (want >= 0).mean() > 0.3
@@ -232,14 +232,14 @@ def _increasing_loop(src):
 def test_nodes_made_increasing_as_the_sequential_loop_does(values):
     src = np.array(values, np.float64)
     x = np.append(src, -7.0)
-    kernels._increasing(x, len(src))
+    chains.increasing(x, len(src))
     np.testing.assert_array_equal(x[: len(src)], _increasing_loop(src))
     assert x[len(src)] == -7.0
 
 
 @njit(cache=False)
 def _run_bounds(code, rs, re, rc):
-    return kernels._run_bounds(code, rs, re, rc)
+    return run_bounds(code, rs, re, rc)
 
 
 def _runs_by_hand(code):
@@ -299,13 +299,13 @@ def test_vectorised_confirmed_labels_equal_the_window_loop(nr):
         pos = np.where(rng.random(nr) < 0.1, -1, pos % period).astype(np.int64)
         pos[max(nr - k + 1, 0) :] = -1  # no window starts in the last k - 1 runs
         lab = np.full(nr, -9, np.int32)
-        kernels._confirmed_labels(nr, pos, lab, k, period, np.empty(nr + k, np.int64))
+        lookup.confirmed_labels(nr, pos, lab, k, period, np.empty(nr + k, np.int32))
         assert lab.tolist() == _labels_by_windows(pos.tolist(), k, period)
 
 
 @njit(cache=False)
 def _append_where(flags, n, out):
-    return kernels._append_where(flags, n, out)
+    return append_where(flags, n, out)
 
 
 @pytest.mark.parametrize("n", [0, 1, 15, 16, 17, 33, 300])
@@ -334,7 +334,7 @@ def test_pixel_segments_are_after_the_last_interior_node_left_of_each_pixel(spac
         nxp = max(xb - xa + 1, 1)
         out = np.full(nxp + 16, -7, np.int64)
         seg_of = np.empty(nxp + 16, np.int64)
-        kernels._segment_values(nx, nn, xa, nxp, np.empty(nn + 1, np.int64), seg_of, vals, out)
+        columns.segment_values(nx, nn, xa, nxp, np.empty(nn + 1, np.int64), seg_of, vals, out)
         pixels = xa + np.arange(nxp)
         expected = [max([r for r in range(1, nn - 1) if np.floor(nx[r]) + 1 <= x] or [0]) for x in pixels]
         assert out[:nxp].tolist() == vals[expected].tolist()
@@ -343,7 +343,7 @@ def test_pixel_segments_are_after_the_last_interior_node_left_of_each_pixel(spac
 
 @njit(cache=False)
 def _fill8(arr, i, value):
-    kernels._fill8(arr, i, value)
+    fill_eight(arr, i, value)
 
 
 @pytest.mark.parametrize("dtype", [np.int64, np.float32])
@@ -372,7 +372,8 @@ def test_vote_counts_written_with_the_columns_equal_counts_of_the_finished_rows(
     and the counts made while writing must say so, as counting the finished rows does."""
     W, k, A, period, sw, nr, cap = 60, 7, 4, 64, 8.0, 16, 10
     n = 3 * (2 * W + 8)
-    rs, re, rc, link, edge, _, _, tl, pos, lab, nx, nv, sm, marks, bounds, votes = kernels._row_scratch(n, W, 1)
+    row_runs, scratch = rows.row_scratch(n, W, 1)
+    rs, re, rc, link, edge, _ = row_runs
     codes = np.random.default_rng(0).integers(0, A, nr)
     for i in range(nr):  # runs of 4 pixels, each sharing its last pixel with the next run
         rs[i], re[i], rc[i], link[i], edge[i] = 3 * i + 1, 3 * i + 4, codes[i], i + 1 < nr, 3 * i + 4.0
@@ -383,13 +384,13 @@ def test_vote_counts_written_with_the_columns_equal_counts_of_the_finished_rows(
     chain = np.full((2, W), -1, np.int32)
     agree, disagree, npx = (np.zeros(cap, np.int32) for _ in range(3))
     span = np.zeros((cap, 2), np.int32)
+    out = ChainMap(col, chain, agree, disagree, npx, span, np.zeros(3, np.int64))
     lo = np.zeros((2, W), np.float32)
+    stripes = StripeCode(table, np.ones((A, A), np.bool_), np.zeros((A, A, 2), np.float32))
+    settings = LabelSettings(k, period, sw, 1, 1000, 2, 0.5, 0, 1.0, 0.3, edges_mode, False)
     nc = 0
     for y in range(2):  # row 1 is row 0 again: every pixel pair agrees
-        nc = kernels._label_row(
-            y, nr, rs, re, rc, link, edge, tl, pos, lab, nx, nv, table, A, k, period, sw, 1, 1000, lo, lo, False,
-            edges_mode, 0.5, 0, sm, marks, bounds, votes, col, chain, nc, span, 1.0, agree, disagree, npx,
-        )  # fmt: skip
+        nc = rows.label_row(y, nr, row_runs, scratch, stripes, settings, lo, lo, out, nc)
     assert nc == 4 and span[0, 1] == span[1, 0]  # the shared pixel
     for c in range(nc):
         y = c // 2
@@ -404,8 +405,8 @@ def test_vote_counts_written_with_the_columns_equal_counts_of_the_finished_rows(
 def test_tables_are_packed_in_pairs(levels):
     rng = np.random.default_rng(3)
     lin, dlin = rng.random((2, 3, levels)).astype(np.float32)
-    assert np.array_equal(kernels.pack_tables(lin, dlin), _packed(lin, dlin))
-    assert kernels.pack_tables(lin, dlin[:2]).size == 0  # tables of different shapes: none
+    assert np.array_equal(fast.pack_tables(lin, dlin), _packed(lin, dlin))
+    assert fast.pack_tables(lin, dlin[:2]).size == 0  # tables of different shapes: none
 
 
 @njit(cache=False)

@@ -1,0 +1,157 @@
+"""Window lookup (paper section 3): the sequence position of every k linked runs, and the confirmed labels.
+
+A window is k consecutive linked runs; its key sum_t code[j + t] * A**t gives its start in the stripe sequence
+through the window table (-1: not in the sequence). A window is confirmed when an adjacent window continues it
+(position + 1); each run takes the label its confirmed windows agree on (-2 where they disagree).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+import app.jit  # noqa: F401  (numba's vector width, before anything compiles)
+from app.decode.fast.bundles import LabelScratch, LabelSettings, Runs, StripeCode
+from app.decode.primitives import gather
+
+
+@njit(cache=True, nogil=True, inline="always")
+def wrap(v: int, period: int) -> int:
+    """v mod period for 0 <= v < 2 * period, without a division; of v's type when both are int32 (numba would
+    widen the difference to int64)."""
+    return type(v)(v - period) if v >= period else v
+
+
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
+def window_positions(
+    nr: int, rc: np.ndarray, link: np.ndarray, table: np.ndarray, A: int, k: int, pos: np.ndarray, keys: np.ndarray
+) -> None:
+    """pos[j] = the sequence position of the window of runs j..j+k-1 (codes rc, links link) through the table,
+    -1 where the window is not k linked runs or not in the sequence; keys: scratch for nr values.
+
+    Each window's key and link count come from its own k runs, so no window depends on the one before and the
+    loop is vectorised (the usual k = 7 written out; a rolled key would chain the runs through a multiply)."""
+    nw = nr - k + 1
+    if k == 7 and A & (A - 1) == 0:
+        # a power-of-two alphabet (two-shot: 4 codes): the key by shifts, the table read by gathers, then the links
+        s = 0
+        while (1 << s) < A:
+            s += 1
+        if s == 2:
+            # shifts by constants keep int32 lanes (shifts by a variable amount are widened to int64)
+            for j in range(nw):
+                key = rc[j] | (rc[j + 1] << 2) | (rc[j + 2] << 4) | (rc[j + 3] << 6) | (rc[j + 4] << 8)
+                keys[j] = key | (rc[j + 5] << 10) | (rc[j + 6] << 12)
+        else:
+            for j in range(nw):
+                key = rc[j] | (rc[j + 1] << s) | (rc[j + 2] << 2 * s) | (rc[j + 3] << 3 * s) | (rc[j + 4] << 4 * s)
+                keys[j] = key | (rc[j + 5] << 5 * s) | (rc[j + 6] << 6 * s)
+        gather(pos, table, keys, nw)
+        for j in range(nw):
+            # all six links, and-ed as bools (a sum in int64 would halve the lanes)
+            linked = link[j] & link[j + 1] & link[j + 2] & link[j + 3] & link[j + 4] & link[j + 5]
+            pos[j] = pos[j] if linked else -1
+    elif k == 7:
+        A2 = A * A
+        A3 = A2 * A
+        A4 = A3 * A
+        A5 = A4 * A
+        A6 = A5 * A
+        for j in range(nw):
+            key = rc[j] + rc[j + 1] * A + rc[j + 2] * A2 + rc[j + 3] * A3 + rc[j + 4] * A4 + rc[j + 5] * A5
+            key += rc[j + 6] * A6
+            nl = np.int64(link[j]) + link[j + 1] + link[j + 2] + link[j + 3] + link[j + 4] + link[j + 5]
+            pos[j] = table[key] if nl == 6 else -1
+    else:
+        for j in range(nw):
+            key = 0
+            nl = 0
+            for t in range(k - 1, -1, -1):
+                key = key * A + rc[j + t]
+            for t in range(k - 1):
+                nl += link[j + t]
+            pos[j] = table[key] if nl == k - 1 else -1
+    for j in range(max(nw, 0), nr):
+        pos[j] = -1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _window_label(c, t, period):
+    """The label a confirmed window at position c gives its run t, -1 for no window (c < 0); int32 throughout
+    (numba widens int32 arithmetic to int64, which would halve the vector)."""
+    v = np.int32(c + t)
+    v = np.int32(v - period) if v >= period else v
+    return v if c >= 0 else np.int32(-1)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _merge_labels(a, b):
+    """Two windows' int32 labels for one run: -1 none, -2 disagreeing (associative and commutative)."""
+    return b if a == -1 else (a if (b == -1) | (b == a) else np.int32(-2))
+
+
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
+def confirmed_labels(nr: int, pos: np.ndarray, lab: np.ndarray, k: int, period: int, cw: np.ndarray) -> None:
+    """lab[i] = the label of run i from the confirmed windows over it (a window confirmed by an adjacent one
+    that continues it), -1 where none, -2 where they disagree. cw: scratch for nr + k - 1 values (int32).
+
+    For the usual k = 7 in two branch-free vectorised passes: each window confirmed or not, then each run's
+    label from its seven windows. That gives the window loop's labels: continuing windows give their shared
+    runs the same labels, so taking every confirmed window's labels changes nothing."""
+    if k == 7 and nr >= 3:
+        # cw[j + 6] = window j's position where it is confirmed, else -1 (and -1 before window 0)
+        none = np.int32(-1)
+        for j in range(6):
+            cw[j] = none
+        per = np.int32(period)
+        one = np.int32(1)
+        for j in range(nr):
+            # int32 throughout, eight to a vector (numba widens int32 arithmetic to int64); positions are < period
+            p = np.int32(pos[j])
+            pp = np.int32(pos[j - 1]) if j > 0 else none
+            pn = np.int32(pos[j + 1]) if j + 1 < nr else none
+            after = wrap(np.int32(pp + one), per)
+            nxt = wrap(np.int32(p + one), per)
+            ok = ((pp >= 0) & (p == after)) | ((p >= 0) & (pn == nxt))
+            cw[j + 6] = p if ok else none
+        for i in range(nr):
+            # window i - t gives run i the label p + t; the seven merged as a tree (the merge is associative)
+            c0 = _window_label(cw[i + 6], 0, per)
+            c1 = _window_label(cw[i + 5], 1, per)
+            c2 = _window_label(cw[i + 4], 2, per)
+            c3 = _window_label(cw[i + 3], 3, per)
+            c4 = _window_label(cw[i + 2], 4, per)
+            c5 = _window_label(cw[i + 1], 5, per)
+            c6 = _window_label(cw[i], 6, per)
+            lv = _merge_labels(
+                _merge_labels(_merge_labels(c0, c1), _merge_labels(c2, c3)), _merge_labels(_merge_labels(c4, c5), c6)
+            )
+            lab[i] = lv
+        return
+    for i in range(nr):
+        lab[i] = -1
+    for j in range(nr):
+        p = pos[j]
+        if p < 0:
+            continue
+        # a window that continues the previous one confirms it too, and that one already gave runs
+        # j..j+k-2 these same labels (or marked them -2): only the last run is new
+        follows = j > 0 and pos[j - 1] >= 0 and p == wrap(pos[j - 1] + 1, period)
+        conf = follows or (j + 1 < nr and pos[j + 1] >= 0 and pos[j + 1] == wrap(p + 1, period))
+        if not conf:
+            continue
+        for t in range(k - 1 if follows else 0, k):
+            i = j + t
+            lv = wrap(p + t, period)
+            if lab[i] == -1:
+                lab[i] = lv
+            elif lab[i] != lv:
+                lab[i] = -2
+
+
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False, forceinline=True)
+def window_labels(nr: int, runs: Runs, stripes: StripeCode, settings: LabelSettings, scratch: LabelScratch) -> None:
+    """scratch.label[:nr] = the confirmed labels of the row's nr runs (see confirmed_labels)."""
+    A = stripes.link_ok.shape[0]
+    window_positions(nr, runs.code, runs.link, stripes.table, A, settings.k, scratch.pos, scratch.keys)
+    confirmed_labels(nr, scratch.pos, scratch.label, settings.k, settings.period, scratch.confirmed)
