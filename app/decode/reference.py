@@ -3,7 +3,7 @@
 Written for reading, not speed. It builds every table itself from the pattern's parameters and the rig's
 calibration inputs (camera gamma or response, colour mixing, depth-range column bounds) and takes only the
 decoders' *settings* (TwoShotParams, OneShotParams, LabelParams): a set-up bug in the fast path
-(`TwoShotDecoder` -> `app/decode/kernels.py`) is then not shared by the reference. The stages, in the
+(`TwoShotDecoder` -> `app/decode/fast/`) is then not shared by the reference. The stages, in the
 paper's order (Je, Lee & Park 2004, sections 3-4):
 
 1. per-pixel classification: linearise, unmix, per-channel sign (two-shot) or colour (one-shot);

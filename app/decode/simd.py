@@ -10,15 +10,19 @@ so the results are bit-identical.
 arithmetic itself. `run_bounds16` appends a row's run starts and ends, and `append_where16` the positions of
 nonzero flags, by compressing vectors (`llvm.experimental.vector.compress`) and storing them whole (a loop
 that appends carries its count from element to element and is never vectorised); `fill8` stores one value
-eight times as one vector. On AVX-512 these are gather and compress instructions; elsewhere LLVM expands them
-into scalar code with the same results (the tests pass built for a generic x86-64, and for AVX2 with
-`NUMBA_CPU_NAME=haswell` and `NUMBA_CPU_FEATURES` set to Haswell's features: the CPU name alone keeps the host's
-AVX-512). What they gain: docs/performance.md.
+eight times as one vector.
+
+The code is chosen per compile target, when numba compiles: on AVX-512 gathers and compresses are single
+instructions. An AVX2 target without AVX-512 has gathers but no compress, which LLVM would expand into one store
+per lane; there the appends move the kept lanes first with AVX2's variable permute (`vpermd`), their order read
+from a 256-entry table indexed by the lane mask (`_append_permuted`). Other targets get LLVM's generic expansion.
+Every path gives the same results (the golden tests pass built for the host, for AVX2 with
+`NUMBA_CPU_NAME=haswell` and `NUMBA_CPU_FEATURES` set to Haswell's features — the CPU name alone keeps the host's
+AVX-512 — and for a generic x86-64). What they gain: docs/performance.md.
 
 The calls are written in LLVM's four-argument form (pointers, alignment, mask, pass-through); LLVM 22 drops the
-alignment operand and upgrades such calls itself. numba's on-disk cache of the modules in `app/decode/fast/` does
-not notice edits to this file (nor to `primitives.py`): after changing it, delete `app/decode/__pycache__` and
-`app/decode/fast/__pycache__`.
+alignment operand and upgrades such calls itself. numba's cache is keyed by the sources of every module that uses
+numba (app/jit.py), so edits here reach the kernels that inline these intrinsics.
 """
 
 from __future__ import annotations
@@ -78,12 +82,75 @@ def _masked_gather(builder: ir.IRBuilder, base: ir.Value, index: ir.Value, value
     return builder.call(fn, [gep, align, ir.Constant(vmask, [1] * lanes), ir.Constant(vval, ir.Undefined)])
 
 
+def _target_features() -> frozenset[str]:
+    """The CPU features numba compiles for (its CPU_FEATURES setting, else the host's), without the '+'."""
+    from numba.core import codegen, config
+
+    f = config.CPU_FEATURES if config.CPU_FEATURES is not None else codegen.get_host_cpu_features()
+    return frozenset(x[1:] for x in f.split(",") if x.startswith("+"))
+
+
+def compress_by_permute() -> bool:
+    """Whether appends use AVX2's variable permute with a table of lane orders: an AVX2 target without AVX-512."""
+    f = _target_features()
+    return "avx2" in f and "avx512f" not in f
+
+
+_V8 = ir.VectorType(_I32, 8)
+
+
+def _lane_orders(module: ir.Module, pairs: bool) -> ir.GlobalVariable:
+    """The module's constant table of lane orders: entry m lists the set lanes of mask m first, in order (8 int32
+    lanes, 256 masks; with pairs 4 int64 lanes as int32 pairs, 16 masks); the rest are 0 (stored, never counted)."""
+    name = "slscan.lane_orders64" if pairs else "slscan.lane_orders32"
+    if name in module.globals:
+        return module.globals[name]
+    rows = []
+    for m in range(16 if pairs else 256):
+        if pairs:
+            order = [i for q in range(4) if m >> q & 1 for i in (2 * q, 2 * q + 1)]
+        else:
+            order = [q for q in range(8) if m >> q & 1]
+        rows.append(ir.Constant(_V8, order + [0] * (8 - len(order))))
+    table_t = ir.ArrayType(_V8, len(rows))
+    gv = ir.GlobalVariable(module, table_t, name)
+    gv.linkage = "internal"
+    gv.global_constant = True
+    gv.initializer = ir.Constant(table_t, rows)
+    gv.align = 32
+    return gv
+
+
+def _append_permuted(builder: ir.IRBuilder, values: ir.Value, mask: ir.Value, base: ir.Value, at: ir.Value) -> ir.Value:
+    """_append for AVX2: per 256-bit part (8 int32 or 4 int64 lanes), the kept lanes moved first by vpermd in the
+    order the table gives for the part's mask, the part stored whole, the count advanced by the mask's popcount."""
+    pairs = values.type.element.width == 64
+    per = 4 if pairs else 8
+    table = _lane_orders(builder.module, pairs)
+    permd = cgutils.get_or_insert_function(builder.module, ir.FunctionType(_V8, [_V8, _V8]), "llvm.x86.avx2.permd")
+    popcount = cgutils.get_or_insert_function(builder.module, ir.FunctionType(_I8, [_I8]), "llvm.ctpop.i8")
+    part_t = ir.VectorType(values.type.element, per)
+    for h in range(LANES // per):
+        lanes = ir.Constant(ir.VectorType(_I32, per), list(range(per * h, per * h + per)))
+        v = builder.shuffle_vector(values, ir.Constant(values.type, ir.Undefined), lanes)
+        m = builder.shuffle_vector(mask, ir.Constant(mask.type, ir.Undefined), lanes)
+        bits = builder.bitcast(m, ir.IntType(per))
+        bits8 = builder.zext(bits, _I8) if per < 8 else bits
+        order = builder.load(builder.gep(table, [ir.Constant(_I32, 0), builder.zext(bits8, _I64)]), align=32)
+        packed = builder.bitcast(builder.call(permd, [builder.bitcast(v, _V8), order]), part_t)
+        builder.store(packed, builder.bitcast(builder.gep(base, [at]), part_t.as_pointer()), align=4)
+        at = builder.add(at, builder.zext(builder.call(popcount, [bits8]), _I64))
+    return at
+
+
 def _append(builder: ir.IRBuilder, values: ir.Value, mask: ir.Value, base: ir.Value, at: ir.Value) -> ir.Value:
     """Store the lanes of 16 int64 or int32 values where mask is on, packed, at base[at:], and return at + their
     count (whole vectors are written: the caller keeps room for 16 more values there). int64 compressed into
     registers eight lanes at a time, each stored plainly: vpcompressq with a memory operand is several times slower on
     Intel, and LLVM splits a 16-lane compress through an aligned stack slot that numba's frames do not align
-    (a crash)."""
+    (a crash). On an AVX2 target without AVX-512: _append_permuted."""
+    if compress_by_permute():
+        return _append_permuted(builder, values, mask, base, at)
     if values.type.element.width == 32:
         # int32: the 16 lanes fill one 512-bit register, compressed at once
         full = values.type

@@ -421,3 +421,42 @@ def test_spread8x2_writes_two_values_over_eight_lanes_each_and_nothing_else():
     _spread(src, dst, 3)
     np.testing.assert_array_equal(dst[:48], np.repeat(src[:6], 8))
     assert (dst[48:] == -1.0).all()
+
+
+AVX2_PROBE = """
+import numpy as np
+from numba import njit
+from app.decode.primitives import append_where
+from app.decode.simd import compress_by_permute
+
+@njit
+def positions(flags, n, out):
+    return append_where(flags, n, out)
+
+out = np.zeros(64, np.int32)
+positions(np.ones(40, np.bool_), 40, out)
+asm = next(iter(positions.inspect_asm().values()))
+print(compress_by_permute(), "vpermd" in asm, "zmm" in asm)
+"""
+
+
+def test_an_avx2_build_appends_by_permutes_with_the_same_results(tmp_path):
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from app.bench.speed import AVX2_ENV
+
+    env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
+    env.update(AVX2_ENV, NUMBA_CACHE_DIR=str(tmp_path))
+    probe = subprocess.run([sys.executable, "-c", AVX2_PROBE], env=env, capture_output=True, text=True)
+    assert probe.returncode == 0, probe.stderr
+    assert probe.stdout.split() == ["True", "True", "False"]  # permutes, no 512-bit registers
+    here = Path(__file__)
+    tests = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", str(here), "-k", "compressed"],
+        env=env, cwd=here.parents[3], capture_output=True, text=True,
+    )  # fmt: skip
+    assert tests.returncode == 0, tests.stdout[-2000:]
+    assert " passed" in tests.stdout and " failed" not in tests.stdout
