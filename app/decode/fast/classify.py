@@ -37,6 +37,20 @@ def _block_extrema(feat, y, c, block, nb, bmax, bmin, absolute):
         bmin[b] = lo
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _pixel_differences(f1, f2, y, x, lin, dlin):
+    """Pixel (y, x)'s linear frame2 - frame1 per camera channel and the summed noise slopes of both values."""
+    a0 = f1[y, x, 0]
+    a1 = f1[y, x, 1]
+    a2 = f1[y, x, 2]
+    b0 = f2[y, x, 0]
+    b1 = f2[y, x, 1]
+    b2 = f2[y, x, 2]
+    d = (lin[0, b0] - lin[0, a0], lin[1, b1] - lin[1, a1], lin[2, b2] - lin[2, a2])
+    n = (dlin[0, b0] + dlin[0, a0], dlin[1, b1] + dlin[1, a1], dlin[2, b2] + dlin[2, a2])
+    return d, n
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def twoshot_classify(
     f1: np.ndarray,
@@ -68,18 +82,7 @@ def twoshot_classify(
     bmin = np.empty(nb, np.float32)
     for y in range(H):
         for x in range(W):
-            a0 = f1[y, x, 0]
-            a1 = f1[y, x, 1]
-            a2 = f1[y, x, 2]
-            b0 = f2[y, x, 0]
-            b1 = f2[y, x, 1]
-            b2 = f2[y, x, 2]
-            d0 = lin[0, b0] - lin[0, a0]
-            d1 = lin[1, b1] - lin[1, a1]
-            d2 = lin[2, b2] - lin[2, a2]
-            n0 = dlin[0, b0] + dlin[0, a0]
-            n1 = dlin[1, b1] + dlin[1, a1]
-            n2 = dlin[2, b2] + dlin[2, a2]
+            (d0, d1, d2), (n0, n1, n2) = _pixel_differences(f1, f2, y, x, lin, dlin)
             for c in range(m):
                 u0 = unmix[c, 0]
                 u1 = unmix[c, 1]
@@ -342,18 +345,7 @@ def _classify_row_any(f1, f2, y, tables, classifier, scratch):
             x1 = min(W, x0 + block)
             mx = np.float32(-np.inf)
             for x in range(x0, x1):
-                a0 = f1[y, x, 0]
-                a1 = f1[y, x, 1]
-                a2 = f1[y, x, 2]
-                b0 = f2[y, x, 0]
-                b1 = f2[y, x, 1]
-                b2 = f2[y, x, 2]
-                d0 = lin[0, b0] - lin[0, a0]
-                d1 = lin[1, b1] - lin[1, a1]
-                d2 = lin[2, b2] - lin[2, a2]
-                n0 = dlin[0, b0] + dlin[0, a0]
-                n1 = dlin[1, b1] + dlin[1, a1]
-                n2 = dlin[2, b2] + dlin[2, a2]
+                (d0, d1, d2), (n0, n1, n2) = _pixel_differences(f1, f2, y, x, lin, dlin)
                 fv = u0 * d0 + u1 * d1 + u2 * d2
                 tmp[c, x] = fv
                 tmp[m + c, x] = ta * (w0 * n0 + w1 * n1 + w2 * n2)

@@ -297,6 +297,17 @@ def _sign_events(fr, tr, c, gap_max, ex, es, et):
     return n
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _close_runs(nr, left, right, rs, re, link):
+    """The event runs' whole pixels from their sub-pixel bounds; the last run links to nothing. Returns nr."""
+    for j in range(nr):
+        rs[j] = int(np.ceil(left[j]))
+        re[j] = int(np.floor(right[j]))
+    if nr > 0:
+        link[nr - 1] = False
+    return nr
+
+
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _event_runs2(ev, n0, n1, runs):
     """event_runs' merge of the channels' events, written out for two channels with the state in locals.
@@ -333,12 +344,7 @@ def _event_runs2(ev, n0, n1, runs):
                 if link[nr - 1]:
                     edge[nr - 1] = bx
             nr += 1
-    for j in range(nr):
-        rs[j] = int(np.ceil(left[j]))
-        re[j] = int(np.floor(right[j]))
-    if nr > 0:
-        link[nr - 1] = False
-    return nr
+    return _close_runs(nr, left, right, rs, re, link)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
@@ -397,9 +403,4 @@ def event_runs(fr: np.ndarray, tr: np.ndarray, gap_max: int, ev: EventScratch, r
                 if link[nr - 1]:
                     edge[nr - 1] = bx
             nr += 1
-    for j in range(nr):
-        rs[j] = int(np.ceil(left[j]))
-        re[j] = int(np.floor(right[j]))
-    if nr > 0:
-        link[nr - 1] = False
-    return nr
+    return _close_runs(nr, left, right, rs, re, link)
