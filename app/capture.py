@@ -1,8 +1,8 @@
 """The capture loop: pace the rig, tag every camera frame with the pattern it saw, check the tag,
 and group checked frames into frame sets (sliding pairs for two-shot).
 
-ARCHITECTURE.md: "a swapped two-shot pair inverts every sign and decodes to wrong but plausible
-stripes", so a tag is never assumed. Every frame is placed on the loop's own schedule (its *tick*:
+A swapped two-shot pair inverts every sign and decodes to wrong but plausible stripes,
+so a tag is never assumed. Every frame is placed on the loop's own schedule (its *tick*:
 the n-th projector refresh since start) from the camera's counters, and its tag is the pattern the
 flip log says the projector showed at that tick. The frame is refused (counted, never paired) when
 

@@ -1,4 +1,4 @@
-"""Frame dumps, format `slscan-dump` version 1 (ARCHITECTURE.md, File formats).
+"""Frame dumps, format `slscan-dump` version 1 (docs/formats.md).
 
 The writer is crash-safe by construction: a frame's PNG is written under a temporary name and
 renamed into place, and only then is its one-line entry appended to `dump.yaml`, whose `frames:`

@@ -3,8 +3,8 @@
 Used by `slscan decode` on dumps and meant for the live pipeline: the input is any sequence of
 (frame_id, pattern) tags, the output the index lists of the frames that form decodable sets.
 
-Rules (ARCHITECTURE.md: "a swapped two-shot pair inverts every sign and decodes to wrong but
-plausible stripes", so tags are checked, never assumed):
+Rules (a swapped two-shot pair inverts every sign and decodes to wrong but plausible stripes,
+so tags are checked, never assumed):
 - one-shot: every frame tagged 0 is a set by itself.
 - two-shot: two frames with consecutive frame_id whose tags are {0, 1} in either order. Pairs
   slide (frames 1-2, 2-3, 3-4, ...) so 60 frames/s give up to 60 sets/s; a frame_id gap or a

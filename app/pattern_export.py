@@ -1,4 +1,4 @@
-"""The pattern export format: PNGs plus `patterns.yaml` (see ARCHITECTURE.md, File formats)."""
+"""The pattern export format: PNGs plus `patterns.yaml` (docs/formats.md)."""
 
 from __future__ import annotations
 

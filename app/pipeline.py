@@ -4,7 +4,7 @@
       CaptureLoop.step()     full: drop the OLDEST set,     FrameSet -> StripeMap    view: newest only,
       recorder.put(frame)    counted as stale_sets          -> depth (triangulate)   older = stale_results
 
-Stale-data policy (ARCHITECTURE.md): the decoder works on the newest sets; a set that waited
+Stale-data policy: the decoder works on the newest sets; a set that waited
 while a newer one arrived is dropped and counted. The recorder is fed by the acquisition thread
 directly and never drops silently (app/recorder.py). Every stage is timed (ms) and the latency of
 each depth map is measured from the host arrival of its newest frame to the end of triangulation.
@@ -41,7 +41,7 @@ WORKERS_HELP = f"decode threads (default {DECODE_WORKERS}: up to 2, as many as t
 
 
 class Processor:
-    """FrameSet -> (StripeMap, depth): issue 4's FrameSetDecoder, built once. Decoding and triangulation are timed
+    """FrameSet -> (StripeMap, depth): the scheme's FrameSetDecoder, built once. Decoding and triangulation are timed
     apart, except where the two-shot decoder triangulates row by row in its own pass (triangulates_in_decode)."""
 
     def __init__(

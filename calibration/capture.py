@@ -1,4 +1,4 @@
-"""The calibration capture layout (ARCHITECTURE.md, File formats; stable, other tools write it):
+"""The calibration capture layout (docs/formats.md; stable, other tools write it):
 
     DIR/board.yaml          the board description (calibration/board.py)
     DIR/pose_000/ ...       one frame dump (format v1, scheme graycode, frames tagged with their

@@ -1,4 +1,4 @@
-"""The camera–projector calibration and its OpenCV FileStorage YAML (ARCHITECTURE.md, File formats).
+"""The camera–projector calibration and its OpenCV FileStorage YAML (docs/formats.md).
 
 Geometry follows OpenCV: pinhole with (k1 k2 p1 p2 k3) distortion, millimetres, and
 X_projector = R · X_camera + T (as cv2.stereoCalibrate with the camera first).

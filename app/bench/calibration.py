@@ -3,7 +3,7 @@
 Poses the simulated board N times (effects on: noise, blur, crosstalk, gamma), solves as
 `slscan calibrate --auto` does, and compares with the rig's true calibration; then scans the flat
 `plane` scene with Gray code and triangulates it with the recovered calibration (and, for
-reference, with the true one) against the ground-truth depth. Targets from issue 7.
+reference, with the true one) against the ground-truth depth.
 """
 
 from __future__ import annotations

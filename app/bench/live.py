@@ -1,4 +1,4 @@
-"""`slscan bench --live`: the live session on the virtual rig at 640x480 (issue 6 targets).
+"""`slscan bench --live`: the live session on the virtual rig at 640x480 (targets in docs/performance.md).
 
 Three measurements, each a table row:
 - live: the whole pipeline (trigger-paced capture, decode worker(s), no view) for N frames:

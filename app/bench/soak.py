@@ -1,4 +1,4 @@
-"""`slscan bench --soak --minutes M`: the live pipeline, headless, on the virtual rig for M minutes (issue 8).
+"""`slscan bench --soak --minutes M`: the live pipeline, headless, on the virtual rig for M minutes.
 
 A production bench runs for hours; this shows whether one session stays healthy: process memory
 (RSS start / end / peak, and its slope over the second half, where warm-up is over), thread count

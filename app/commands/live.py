@@ -229,7 +229,7 @@ def _sim_session(
     overrides: dict,
     window: tuple[str, dict] | None = None,
 ) -> Session:
-    """The virtual rig (drivers/sim, issue 3): its true calibration goes with every result and dump.
+    """The virtual rig (drivers/sim): its true calibration goes with every result and dump.
 
     window: (driver, options) of a real projector window shown along with the virtual projector.
     """

@@ -1,4 +1,4 @@
-"""Undoing the camera's colour crosstalk (ARCHITECTURE.md: color_mixing).
+"""Undoing the camera's colour crosstalk (the calibration's `color_mixing`, docs/formats.md).
 
 `color_mixing` holds the linear camera R, G, B (rows) produced by each projector primary
 (columns); only each column's direction matters. We scale every column so its own channel is 1

@@ -56,7 +56,7 @@ class Board:
         return self.texture.corners()
 
     def board_yaml(self) -> dict:
-        """The board as ARCHITECTURE.md's board.yaml describes it (only its documented fields)."""
+        """The board as board.yaml (docs/formats.md) describes it (only its documented fields)."""
         keys = ("type", "rows", "cols", "square_mm") + (
             ("marker_mm", "dictionary") if self.spec["type"] == "charuco" else ()
         )

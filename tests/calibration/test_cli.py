@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-from app.bench.calibration import GEOMETRY_TARGETS as TARGETS  # issue 7
+from app.bench.calibration import GEOMETRY_TARGETS as TARGETS
 from app.dump import DumpWriter, read_dump
 from app.patterns import graycode_patterns
 from calibration.board import Board

@@ -1,7 +1,7 @@
 """The wizard's rig path: devices opened from the driver registries (the `sim` drivers, through the
 same device protocol as real hardware), scripted without a window: the test's "hand" poses the
 simulated board, the source films the Gray code with one checked frame per pattern, the wizard's
-state keeps the poses, and the capture solves to the issue's targets against the rig's truth.
+state keeps the poses, and the capture solves to the bench's geometry targets against the rig's truth.
 Injected faults (dropped, swapped, late frames) make the pose be retaken, never saved wrong.
 """
 
@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.bench.calibration import GEOMETRY_TARGETS as TARGETS  # issue 7
+from app.bench.calibration import GEOMETRY_TARGETS as TARGETS
 from app.config import load_config
 from calibration.auto import rig_board
 from calibration.capture import CaptureWriter, open_capture

@@ -50,7 +50,7 @@ def test_headless_live_run_matches_ground_truth(sim_session):
     assert fig["triangulate_ms_p50"] == 0.0 and fig["triangulated_in_decode"]
     wrong = processor.depth(processor.decode((f1, f0)))
     assert depth_agreement(wrong, gt)[0] < 0.5
-    assert coverage > 0.25, coverage  # coverage targets belong to the decoder (issue 4) and its bench
+    assert coverage > 0.25, coverage  # coverage targets belong to the decoder and its bench
     # each frame is tagged from the flip log: tags alternate with the trigger count
     assert pipe.capture.tagged + pipe.capture.refused == pipe.capture.frames
 
