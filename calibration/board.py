@@ -19,8 +19,8 @@ import cv2
 import numpy as np
 import yaml
 
-from app.errors import InputError
-from app.yamlfile import load_yaml
+from core.errors import InputError
+from core.yamlfile import load_yaml
 
 TYPES = ("checkerboard", "charuco")
 FILENAME = "board.yaml"

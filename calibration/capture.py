@@ -15,20 +15,19 @@ from __future__ import annotations
 import os
 import re
 import shutil
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import yaml
 
-from app.dump import Dump, DumpWriter, read_dump
-from app.errors import InputError
-from app.imageio import read_rgb, write_rgb
-from app.patterns import PatternSet
 from calibration.board import FILENAME as BOARD_FILE
 from calibration.board import Board, load_board
-from calibration.model import Calibration
+from core.calibration import Calibration
+from core.dump import Dump, DumpWriter, read_dump
+from core.errors import InputError
+from core.imageio import read_rgb, write_rgb
+from core.patterns import PatternSet
 
 POSE_RE = re.compile(r"^pose_(\d{3,})$")
 RESPONSE_DIR = "response"
@@ -92,10 +91,6 @@ class Capture:
         if len(shapes) != 1:
             raise InputError(f"{where}: frames have different sizes {sorted(shapes)}")
         return PoseFrames(name, frames, meta)
-
-    def iter_poses(self) -> Iterator[PoseFrames]:
-        for name in self.poses:
-            yield self.read_pose(name)
 
     def true_calibration(self) -> Calibration | None:
         """The true calibration a simulated capture carries (dump field `calibration_is_truth`), else None.

@@ -14,8 +14,6 @@ import threading
 import cv2
 import numpy as np
 
-from app.errors import InputError
-from app.patterns import graycode_patterns
 from calibration.auto import fronto_pose, make_rig, rig_board
 from calibration.correspondence import decode_projector_maps
 from calibration.poses import plan_poses
@@ -23,6 +21,8 @@ from calibration.preview import PreviewWorker
 from calibration.response import level_image, level_plan
 from calibration.sequence import Take
 from calibration.validate import plane_scan
+from core.errors import InputError
+from core.patterns import graycode_patterns
 
 
 class SimBoardSource:

@@ -11,11 +11,11 @@ from typing import Protocol
 
 import numpy as np
 
-from app.patterns import PatternSet
 from calibration.board import Board
-from calibration.model import Calibration
 from calibration.preview import PreviewWorker
 from calibration.sequence import Take
+from core.calibration import Calibration
+from core.patterns import PatternSet
 
 
 class BoardSource(Protocol):

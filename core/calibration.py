@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 import yaml
 
-from app.errors import InputError
+from core.errors import InputError
 
 RMS_KEYS = ("camera_rms", "projector_rms", "stereo_rms")
 

@@ -17,11 +17,11 @@ import cv2
 import numpy as np
 import yaml
 
-from app.errors import InputError
-from app.imageio import encode_png, read_rgb
-from app.pattern_export import read_patterns, read_patterns_meta, write_patterns
-from app.patterns import PatternSet
-from calibration.model import Calibration
+from core.calibration import Calibration
+from core.errors import InputError
+from core.imageio import encode_png, read_rgb
+from core.pattern_export import read_patterns, read_patterns_meta, write_patterns
+from core.patterns import PatternSet
 
 FORMAT = "slscan-dump"
 VERSION = 1

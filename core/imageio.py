@@ -8,7 +8,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from app.errors import InputError
+from core.errors import InputError
 
 # OpenCV logs its own WARN/ERROR lines for corrupt files; slscan reports those as one clear line itself.
 cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)

@@ -1,6 +1,6 @@
 """Stripe-pattern synthesis after Je, Lee & Park (2004), section 5, plus a Gray-code reference.
 
-Pure: parameters in, arrays and plain data out; no I/O (see `app/pattern_export.py`).
+Pure: parameters in, arrays and plain data out; no I/O (see `core/pattern_export.py`).
 
 One-shot: stripes of N colours (R, G, B for N = 3), adjacent stripes differ, every window of k
 consecutive stripes is unique: n(N, k) = N (N-1)^(k-1) windows.
@@ -22,7 +22,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from app.errors import InputError
+from core.errors import InputError
 
 SCHEMES = ("one-shot", "two-shot", "graycode")
 

@@ -107,8 +107,8 @@ def soak(
     """Run the live pipeline for `minutes`; returns the figures (see module docstring).
 
     sim_overrides: extra `sim:` keys of config/sim.yaml (tests run it at 320x240)."""
-    from app.commands.live import build_session
-    from app.pipeline import LivePipeline
+    from app.live_pipeline import LivePipeline
+    from app.session import build_session
 
     before = sample()  # before the session exists: what the process holds without it
     overrides = {**(sim_overrides or {}), "seed": seed, **({"faults": FAULTS} if faults else {})}
@@ -201,7 +201,7 @@ def soak(
 
 
 def run(args: argparse.Namespace) -> list[dict]:
-    from app.errors import InputError
+    from core.errors import InputError
 
     minutes, sample_s = getattr(args, "minutes", 30.0), getattr(args, "soak_sample", 30.0)
     if not minutes > 0:

@@ -10,9 +10,9 @@ import yaml
 
 from app.argtypes import positive_float, positive_int
 from app.config import load_config
-from app.errors import InputError
 from app.fsutil import atomic_directory
-from app.imageio import write_rgb
+from core.errors import InputError
+from core.imageio import write_rgb
 from drivers.camera.errors import EndOfDumpError
 from drivers.camera.spec import open_camera
 

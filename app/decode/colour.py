@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.patterns import CHANNEL_INDEX
+from core.patterns import CHANNEL_INDEX
 
 
 def unmixing_matrix(color_mixing: np.ndarray | None) -> np.ndarray:

@@ -28,7 +28,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from app.errors import InputError, SlscanError
+from core.errors import InputError, SlscanError
 from drivers.base import CAMERAS, Frame, register
 from drivers.camera import pixels
 from drivers.camera.errors import (

@@ -25,7 +25,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from app.errors import InputError
+from core.errors import InputError
 from drivers.base import CAMERAS, Frame, register
 from drivers.camera.errors import (
     CameraStoppedError,

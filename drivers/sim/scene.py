@@ -28,8 +28,8 @@ import cv2
 import numpy as np
 import yaml
 
-from app.errors import InputError
-from app.yamlfile import load_yaml_mapping
+from core.errors import InputError
+from core.yamlfile import load_yaml_mapping
 from drivers.sim.optics import Geometry
 from drivers.sim.shapes import Box, Cylinder, Material, Rectangle, Relief, Shape, Sphere
 from drivers.sim.textures import Bands, Charuco, Checkerboard, Patches, Stickers, Texture, Uniform
