@@ -150,6 +150,7 @@ class CaptureWriter:
         self.patterns = patterns
         self.count = 0
         self._frame_id = 0
+        self._pattern_files: dict[str, bytes] | None = None  # the first pose's pattern export, reused
 
     def add_pose(
         self,
@@ -167,11 +168,15 @@ class CaptureWriter:
             raise ValueError(f"{len(frames)} frames for {len(self.patterns)} patterns")
         name = f"pose_{self.count:03d}"
         extra = {"calibration_is_truth": True} if calibration is not None and calibration_is_truth else None
-        with DumpWriter(self.folder / name, self.patterns, calibration, extra=extra) as w:
+        with DumpWriter(
+            self.folder / name, self.patterns, calibration, extra=extra, pattern_files=self._pattern_files
+        ) as w:
             for p, img in enumerate(frames):
                 ts = timestamps_ns[p] if timestamps_ns else self._frame_id * 16_666_667
                 w.add(img, p, frame_ids[p] if frame_ids else self._frame_id, ts)
                 self._frame_id += 1
+        if self._pattern_files is None:
+            self._pattern_files = {f.name: f.read_bytes() for f in sorted((self.folder / name / "patterns").iterdir())}
         self.count += 1
         return name
 
