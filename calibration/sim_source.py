@@ -202,6 +202,9 @@ class SimBoardSource:
             f"depth error {scan.depth_error_pct:.3f} % vs truth"
         )
 
+    def pump(self) -> None:
+        """No projector window to keep responsive: the virtual rig renders its own light."""
+
     def close(self) -> None:
         with self._spare_cond:
             self._closing = True

@@ -224,9 +224,7 @@ class WizardWindow:
         try:
             while not self.quit:
                 self.win.dispatch_events()
-                pump = getattr(self.src, "pump", None)
-                if pump is not None:
-                    pump()
+                self.src.pump()
                 self.poll()
                 self.on_draw()
                 self.win.flip()

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -33,11 +33,19 @@ class CameraTimeoutError(DeviceError):
 @runtime_checkable
 class Camera(Protocol):
     name: str
+    device: str  # what messages call it: model and serial, device path, dump folder
 
     def start(self) -> None: ...
     def grab(self, timeout_s: float = 1.0) -> Frame: ...
     def stop(self) -> None: ...
     def close(self) -> None: ...
+
+
+@runtime_checkable
+class CountingCamera(Camera, Protocol):
+    """A camera that counts what it delivered and lost (`stats`: a dataclass of int counters)."""
+
+    stats: Any
 
 
 @runtime_checkable

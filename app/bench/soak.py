@@ -191,7 +191,7 @@ def soak(
         "untracked": cap["untracked"],
         "refused": cap["refused"],
         "resyncs": cap["resyncs"],
-        "camera_overrun": getattr(cam, "dropped", 0),
+        "camera_overrun": cam.dropped,  # the virtual rig's camera: frames lost to a slow consumer
         "stale_sets": fig["stale_sets"],
         "decode_failed": pipe.stats.failed,
         "latency_ms_p95": round(fig["latency_ms_p95"], 1),

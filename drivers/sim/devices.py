@@ -249,6 +249,7 @@ class SimCamera:
     """Renders one frame per trigger tick with the pattern shown at that tick."""
 
     name = "sim"
+    device = "sim"
 
     def __init__(self, bench: SimBench) -> None:
         self.bench = bench
