@@ -1,8 +1,8 @@
 """The capture loop: pace the rig, tag every camera frame with the pattern it saw, check the tag,
 and group checked frames into frame sets (sliding pairs for two-shot).
 
-ARCHITECTURE.md: "a swapped two-shot pair inverts every sign and decodes to wrong but plausible
-stripes", so a tag is never assumed. Every frame is placed on the loop's own schedule (its *tick*:
+A swapped two-shot pair inverts every sign and decodes to wrong but plausible stripes,
+so a tag is never assumed. Every frame is placed on the loop's own schedule (its *tick*:
 the n-th projector refresh since start) from the camera's counters, and its tag is the pattern the
 flip log says the projector showed at that tick. The frame is refused (counted, never paired) when
 
@@ -34,7 +34,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from app.framesets import group_frame_sets
-from drivers.base import Camera, Frame, Projector, Trigger
+from app.schemes import get_scheme
+from drivers.base import Camera, Frame, PeekableTrigger, Projector, Trigger
 
 
 @dataclass(frozen=True)
@@ -72,11 +73,6 @@ class FlipLog:
     def entries(self) -> list[Shown]:
         """Every entry kept, in the order the ticks were first recorded."""
         return [self._entries[t] for t in self._order]
-
-    def mark_late(self, tick: int) -> None:
-        s = self._entries.get(tick)
-        if s is not None:
-            self._entries[tick] = dataclasses.replace(s, late=True)
 
 
 @dataclass
@@ -190,9 +186,6 @@ class FrameChecker:
         """Camera frame `frame_id` was exposed at `tick` (used when frames carry no trigger count)."""
         self._id_base = frame_id - tick
 
-    def reset_pairing(self) -> None:
-        self._history.clear()
-
     # ------------------------------------------------------------------ per frame
 
     def _refuse(self, counter: str, reason: str, *, break_pair: bool = True) -> tuple[None, None]:
@@ -303,7 +296,8 @@ class FrameChecker:
         return tagged, self._complete_set(arrival_ns)
 
     def _complete_set(self, arrival_ns: int) -> FrameSet | None:
-        need = 1 if self.scheme == "one-shot" else 2 if self.scheme == "two-shot" else self.n_patterns
+        kind = get_scheme(self.scheme)
+        need = kind.frames_per_set(self.n_patterns)
         if len(self._history) < need:
             return None
         window = list(self._history)[-need:]
@@ -316,7 +310,7 @@ class FrameChecker:
             return None
         fs = sets[-1]
         frames = tuple(window[i].frame for i in fs.indices)
-        if not self.sliding or self.scheme == "graycode":
+        if not self.sliding or kind.disjoint_sets:
             self._history.clear()
         self.stats.sets += 1
         return FrameSet(frames, fs.reversed_order, arrival_ns)
@@ -338,7 +332,7 @@ def _content_sample(image: np.ndarray) -> bytes:
 
 def pattern_order(scheme: str, n_patterns: int) -> list[int]:
     """Projection order: two-shot alternates 0, 1, 0, 1 (so sliding pairs give a set per frame)."""
-    return list(range(n_patterns)) if scheme != "one-shot" else [0]
+    return get_scheme(scheme).frame_order(n_patterns)
 
 
 @dataclass
@@ -383,14 +377,16 @@ class CaptureLoop:
         pace: bool = True,
         projector_thread: bool | None = None,
         clock: Callable[[], int] = time.monotonic_ns,
+        owns_devices: bool = True,
     ) -> None:
         self.camera, self.projector, self.trigger = camera, projector, trigger
+        self.owns_devices = owns_devices  # False: close() stops the devices but leaves them open
         # With a trigger, flips follow the trigger counter on their own thread, so a slow grab or
         # decode never leaves a tick without its pattern. Not for a projector whose window belongs
-        # to the thread that opened it (pyglet: it has request_stop); there the loop shows inline,
-        # unless it is wrapped to be callable from any thread (app/owner_thread.py: any_thread).
+        # to the thread that opened it (Projector.thread_bound); there the loop shows inline, unless
+        # it is wrapped to be callable from any thread (app/owner_thread.py).
         if projector_thread is None:
-            thread_bound = hasattr(projector, "request_stop") and not getattr(projector, "any_thread", False)
+            thread_bound = projector is not None and projector.thread_bound
             projector_thread = projector is not None and trigger is not None and not thread_bound
         self._use_thread = bool(projector_thread) and projector is not None and trigger is not None
         self._proj_stop = threading.Event()
@@ -411,7 +407,7 @@ class CaptureLoop:
             n_patterns,
             self.flips,
             device_tags=projector is None,
-            check_alternation=projector is not None and scheme != "one-shot",
+            check_alternation=projector is not None and get_scheme(scheme).alternates,
         )
         self.tick = 0  # steps made
         self._deadline = 0
@@ -426,7 +422,7 @@ class CaptureLoop:
     @property
     def stop_requested(self) -> bool:
         """The operator closed the projector window (or pressed Esc/q in it): end the session cleanly."""
-        return bool(getattr(self.projector, "stop_requested", False))
+        return self.projector is not None and bool(self.projector.stop_requested)
 
     def start(self) -> None:
         self.camera.start()
@@ -506,8 +502,7 @@ class CaptureLoop:
         if self.projector is None:
             return
         pattern = self.order[self.tick % len(self.order)]
-        ret = self.projector.show(pattern)
-        flip_ns = ret if isinstance(ret, int) and ret > 0 else self.clock()
+        flip_ns = self.projector.show(pattern) or self.clock()
         self.flips.record(Shown(self.tick, pattern, flip_ns))
 
     def _read_counter(self) -> int:
@@ -515,10 +510,9 @@ class CaptureLoop:
 
         # A trigger that follows its own event lines answers without a serial round trip; the box is
         # still asked itself every QUERY_INTERVAL_NS, which is what notices a box gone silent or mad.
-        peek = getattr(self.trigger, "peek_counter", None)
         now = time.monotonic_ns()
-        if peek is not None and now - self._last_query_ns < QUERY_INTERVAL_NS:
-            read = peek
+        if isinstance(self.trigger, PeekableTrigger) and now - self._last_query_ns < QUERY_INTERVAL_NS:
+            read = self.trigger.peek_counter
         else:
             read, self._last_query_ns = self.trigger.counter, now  # type: ignore[union-attr]
         try:
@@ -533,9 +527,9 @@ class CaptureLoop:
             self._resync()
             before = self._read_counter()
         pattern = self.order[before % len(self.order)]
-        ret = self.projector.show(pattern)  # type: ignore[union-attr]
+        shown_ns = self.projector.show(pattern)  # type: ignore[union-attr]
         after = self._read_counter()
-        flip_ns = ret if isinstance(ret, int) and ret > 0 else self.clock()
+        flip_ns = shown_ns or self.clock()
         if after < before:  # reset during the show: nothing shown here can be trusted
             self._resync()
             return
@@ -558,20 +552,24 @@ class CaptureLoop:
         self._count = 0
 
     def close(self) -> None:
-        """Stop and close every device, even if one of them fails."""
+        """Stop (and, when the loop owns them, close) every device, even if one of them fails."""
         errors: list[BaseException] = []
         if self._proj_thread is not None:
             self._proj_stop.set()
             self._proj_thread.join(2.0)
             self._proj_thread = None
-        for action in (
+        actions: list[Callable[[], object]] = [
             lambda: self.projector.show(None) if self.projector is not None else None,
             lambda: self.trigger.stop() if self.trigger is not None else None,
             self.camera.stop,
-            self.camera.close,
-            lambda: self.trigger.close() if self.trigger is not None else None,
-            lambda: self.projector.close() if self.projector is not None else None,
-        ):
+        ]
+        if self.owns_devices:
+            actions += [
+                self.camera.close,
+                lambda: self.trigger.close() if self.trigger is not None else None,
+                lambda: self.projector.close() if self.projector is not None else None,
+            ]
+        for action in actions:
             try:
                 action()
             except Exception as exc:

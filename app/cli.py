@@ -10,7 +10,7 @@ from collections.abc import Sequence
 from typing import NoReturn
 
 from app import commands
-from app.errors import SlscanError
+from core.errors import SlscanError
 
 DESCRIPTION = """\
 slscan: a live structured-light 3D scanner (colour-stripe patterns after Je, Lee & Park, 2004).

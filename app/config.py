@@ -9,8 +9,8 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from app.errors import InputError
-from app.yamlfile import load_yaml_mapping
+from core.errors import InputError
+from core.yamlfile import load_yaml_mapping
 
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "config"
 DEFAULT_CONFIG = CONFIG_DIR / "sim.yaml"

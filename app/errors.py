@@ -1,16 +1,5 @@
-"""Errors an operator can cause and fix: the CLI prints them as one line and exits with status 2."""
+"""The operator's errors, for app code: they live in `core.errors` (drivers raise them too)."""
 
+from core.errors import DeviceError, InputError, SlscanError
 
-class SlscanError(Exception):
-    """Base of every error that is the user's input, a file, or a device (not a bug).
-
-    The message is one line that names the file, field or device and says what to check.
-    """
-
-
-class InputError(SlscanError):
-    """A bad argument, file or field."""
-
-
-class DeviceError(SlscanError):
-    """A device that is missing, busy, unsupported or stopped answering."""
+__all__ = ["DeviceError", "InputError", "SlscanError"]

@@ -8,9 +8,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from app.errors import InputError
-from app.imageio import write_float_tiff, write_rgb
 from app.triangulate import PointCloud
+from core.errors import InputError
+from core.imageio import write_float_tiff, write_rgb
 
 
 def write_depth_tiff(path: str | os.PathLike, depth: np.ndarray) -> None:

@@ -3,8 +3,8 @@
 Used by `slscan decode` on dumps and meant for the live pipeline: the input is any sequence of
 (frame_id, pattern) tags, the output the index lists of the frames that form decodable sets.
 
-Rules (ARCHITECTURE.md: "a swapped two-shot pair inverts every sign and decodes to wrong but
-plausible stripes", so tags are checked, never assumed):
+Rules (a swapped two-shot pair inverts every sign and decodes to wrong but plausible stripes,
+so tags are checked, never assumed):
 - one-shot: every frame tagged 0 is a set by itself.
 - two-shot: two frames with consecutive frame_id whose tags are {0, 1} in either order. Pairs
   slide (frames 1-2, 2-3, 3-4, ...) so 60 frames/s give up to 60 sets/s; a frame_id gap or a
@@ -17,9 +17,11 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from app.schemes import get_scheme
+
 
 @dataclass(frozen=True)
-class FrameSet:
+class FrameIndexSet:
     """Indices (into the caller's frame list) of one complete set, in pattern order."""
 
     indices: tuple[int, ...]  # indices[p] is the frame that saw pattern p
@@ -37,45 +39,44 @@ class FrameSetStats:
 
 def group_frame_sets(
     tags: Sequence[tuple[int, int]], scheme: str, n_patterns: int, *, sliding: bool = True
-) -> tuple[list[FrameSet], FrameSetStats]:
+) -> tuple[list[FrameIndexSet], FrameSetStats]:
     """Group (frame_id, pattern) tags, in capture order, into complete frame sets.
 
     sliding=False makes two-shot pairs disjoint (frames 1-2, 3-4, ...) instead of sliding.
     """
     stats = FrameSetStats(frames=len(tags))
-    sets: list[FrameSet] = []
+    sets: list[FrameIndexSet] = []
     for i in range(1, len(tags)):
         if tags[i][0] != tags[i - 1][0] + 1:
             stats.gaps += 1
     for _, pat in tags:
         if not 0 <= pat < n_patterns:
             stats.bad_tags += 1
-    if scheme == "one-shot":
-        sets = [FrameSet((i,), i) for i, (_, p) in enumerate(tags) if p == 0]
-    elif scheme == "two-shot":
+    frames_per_set = get_scheme(scheme).shots  # an unknown scheme is an InputError
+    if frames_per_set == 1:
+        sets = [FrameIndexSet((i,), i) for i, (_, p) in enumerate(tags) if p == 0]
+    elif frames_per_set == 2:
         i = 0
         while i + 1 < len(tags):
             (fa, pa), (fb, pb) = tags[i], tags[i + 1]
             if fb == fa + 1 and {pa, pb} == {0, 1}:
                 order = (i, i + 1) if pa == 0 else (i + 1, i)
-                sets.append(FrameSet(order, i, reversed_order=pa == 1))
+                sets.append(FrameIndexSet(order, i, reversed_order=pa == 1))
                 i += 1 if sliding else 2
             else:
                 if fb == fa + 1 and pa == pb:
                     stats.bad_tags += 1
                 i += 1
-    elif scheme == "graycode":
+    else:  # one frame per pattern, in pattern order (Gray code)
         i = 0
         while i + n_patterns <= len(tags):
             ok = all(
                 tags[i + j][1] == j and (j == 0 or tags[i + j][0] == tags[i + j - 1][0] + 1) for j in range(n_patterns)
             )
             if ok:
-                sets.append(FrameSet(tuple(range(i, i + n_patterns)), i))
+                sets.append(FrameIndexSet(tuple(range(i, i + n_patterns)), i))
                 i += n_patterns
             else:
                 i += 1
-    else:
-        raise ValueError(f"unknown scheme {scheme!r}")
     stats.sets = len(sets)
     return sets, stats

@@ -9,7 +9,7 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-from app.errors import InputError
+from core.errors import InputError
 
 
 @contextlib.contextmanager

@@ -40,7 +40,7 @@ from app.errors import SlscanError
 NUMBA_FLOOR = (0, 62)
 LLVMLITE_FLOOR = (0, 45)
 LLVM_FLOOR = 20
-PACKAGES = ("app", "drivers", "calibration")  # the application's top-level packages, beside this one's
+PACKAGES = ("app", "core", "drivers", "calibration")  # the application's top-level packages, beside this one's
 STALE_CACHE_S = 7 * 24 * 3600
 
 WIDE_VECTORS = "-prefer-256-bit"  # appended to the host's features where it has AVX-512

@@ -22,15 +22,16 @@ from typing import Any
 
 import numpy as np
 
-from app.errors import DeviceError
+from core.errors import DeviceError
+from drivers.base import Projector
 
 
 class OwnerThreadProjector:
     """Wraps a thread-bound projector; `serve()` must be called by the thread that created it."""
 
-    any_thread = True  # CaptureLoop may call it from its projector thread
+    thread_bound = False  # CaptureLoop may call it from its projector thread
 
-    def __init__(self, projector: Any, timeout_s: float = 5.0) -> None:
+    def __init__(self, projector: Projector, timeout_s: float = 5.0) -> None:
         self.projector = projector
         self.name = projector.name
         self.size = projector.size
@@ -84,7 +85,7 @@ class OwnerThreadProjector:
     def load(self, images: Sequence[np.ndarray]) -> None:
         self._call(lambda: self.projector.load(images))
 
-    def show(self, index: int | None) -> Any:
+    def show(self, index: int | None) -> int | None:
         return self._call(lambda: self.projector.show(index), ignore_closed=index is None)
 
     def close(self) -> None:
@@ -98,10 +99,7 @@ class OwnerThreadProjector:
 
     @property
     def stop_requested(self) -> bool:
-        return bool(getattr(self.projector, "stop_requested", False))
-
-    def __getattr__(self, name: str) -> Any:  # read-only state (flips, current, screen_name, ...)
-        return getattr(self.projector, name)
+        return bool(self.projector.stop_requested)
 
 
 class _Call:
@@ -130,9 +128,9 @@ class _Call:
         return self.result
 
 
-def thread_bound(projector: Any) -> bool:
-    """A projector whose window must be used by the thread that opened it (pyglet: it has request_stop)."""
-    return hasattr(projector, "request_stop") and not getattr(projector, "any_thread", False)
+def thread_bound(projector: Projector) -> bool:
+    """A projector whose window must be used by the thread that opened it (drivers.base.Projector)."""
+    return bool(projector.thread_bound)
 
 
 class HandOver:

@@ -4,7 +4,7 @@ The capture thread hands frames over with `put`, which never blocks (a blocked c
 would lose camera frames instead). The queue holds `queue_frames` frames (2 s at 60 Hz by
 default); if the writer falls that far behind, or the disk fills up, recording stops, the
 frames not written are counted, and `message` says what happened. Everything written before
-stays a readable dump (see app/dump.py: each frame is complete before its index entry exists).
+stays a readable dump (see core/dump.py: each frame is complete before its index entry exists).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from app.dump import DumpWriteError, DumpWriter
+from core.dump import DumpWriteError, DumpWriter
 from drivers.base import Frame
 
 _STOP = object()

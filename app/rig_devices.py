@@ -3,19 +3,11 @@
 
 from __future__ import annotations
 
-import contextlib
-import importlib
 from typing import Any
 
 from app.config import Config
-from app.errors import InputError
-
-# importing these registers the real drivers (the sim ones register with drivers.sim.devices)
-DRIVER_MODULES = {
-    "camera": ("drivers.camera.spec",),
-    "projector": ("drivers.projector.window",),
-    "trigger": ("drivers.trigger.serial_box",),
-}
+from core.errors import InputError
+from drivers import registry as driver_registry
 
 
 def rig_driver(cfg: Config, kind: str, registry: dict, required: bool = True) -> tuple[str | None, dict]:
@@ -30,17 +22,10 @@ def rig_driver(cfg: Config, kind: str, registry: dict, required: bool = True) ->
     name = cfg.get(f"rig.{kind}.driver", types=str)
     if name == "none" and not required:
         return None, {}
-    if name != "sim":
-        for mod in DRIVER_MODULES[kind]:
-            with contextlib.suppress(ImportError):
-                importlib.import_module(mod)
-        if kind == "camera":
-            from drivers.camera.spec import load_camera_drivers
-
-            load_camera_drivers()
-        if name not in registry:
-            known = ", ".join(sorted({*registry, "sim"}))
-            raise InputError(f"{cfg.path}: key 'rig.{kind}.driver': unknown driver {name!r} (known: {known})")
+    driver_registry.load(kind)  # fills `registry`, the drivers.base registry of this kind
+    if name not in registry:
+        known = ", ".join(sorted(registry))
+        raise InputError(f"{cfg.path}: key 'rig.{kind}.driver': unknown driver {name!r} (known: {known})")
     return name, {k: v for k, v in sec.items() if k != "driver"}
 
 

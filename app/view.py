@@ -36,12 +36,13 @@ import numpy as np
 
 from app import export
 from app.decode.stripemap import StripeMap
-from app.pipeline import status_line
+from app.live_pipeline import status_line
 from app.pointview import _TURBO, PointView, decimate, decimated_rays, depth_colours, render_points
 
 if TYPE_CHECKING:
-    from app.commands.live import Session
-    from app.pipeline import Result
+    from app.live_pipeline import LiveResult
+    from app.owner_thread import OwnerThreadProjector
+    from app.session import Session
 
 SCHEME_CYCLE = ("two-shot", "one-shot", "graycode")
 REDRAW_S = 1 / 30  # measured at 640x480 on Xvfb: a redraw (4 blits + flip) costs ~6 ms of the main thread
@@ -176,7 +177,7 @@ class PointPanel:
     def pose(self) -> PointView:
         return self.view if self.manual else self.home.orbit(time.monotonic() - self.t0)
 
-    def render(self, result: Result) -> np.ndarray:
+    def render(self, result: LiveResult) -> np.ndarray:
         xyz, _ = decimate(result.depth, self.rays, None, self.step)
         if self.camera_colours:
             # The brightest of the set's frames: two-shot lights each channel in one of its two frames.
@@ -197,7 +198,7 @@ class LiveView:
     """A pyglet window showing the newest result of a running LivePipeline (see the module docstring)."""
 
     def __init__(self, session: Session, args: argparse.Namespace) -> None:
-        from app.pipeline import LivePipeline
+        from app.live_pipeline import LivePipeline
 
         self.session = session
         self.args = args
@@ -210,7 +211,7 @@ class LiveView:
         self.status_text = ""  # what the status line shows
         self.processor = session.processor()
         self.pipe: Any = None  # started once the window is open (no devices running behind a failed window)
-        self.projector: Any = None  # the rig's projector window, served by this thread (OwnerThreadProjector)
+        self.projector: OwnerThreadProjector | None = None  # the rig's projector window, served by this thread
         self.cam_size = session.calibration.camera_size
         self.points = self._point_panel()
         self.win: Any = None
@@ -256,7 +257,7 @@ class LiveView:
 
     # -- keys ------------------------------------------------------------------------------
     def snapshot(self) -> None:
-        from app.commands.live import save_result
+        from app.session import save_result
 
         res = self.pipe.latest
         if res is None:
@@ -268,7 +269,7 @@ class LiveView:
         self.message = f"snapshot written to {out}"
 
     def toggle_recording(self) -> None:
-        from app.commands.live import open_recorder
+        from app.session import open_recorder
 
         if self.recorder is None:
             folder = Path(time.strftime("rec-%Y%m%d-%H%M%S"))
@@ -385,7 +386,7 @@ class LiveView:
             self.quit = True
             return True  # closed below, after the session stopped
 
-        last: Result | None = None
+        last: LiveResult | None = None
         status_due: list[Any] = [0.0, None]  # when the status line is next laid out, and its message
 
         def show_now(text: str) -> None:

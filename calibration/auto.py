@@ -13,12 +13,12 @@ from pathlib import Path
 
 import numpy as np
 
-from app.errors import InputError
-from app.patterns import graycode_patterns
 from calibration.board import Board, board_from_dict
 from calibration.capture import CaptureWriter
 from calibration.poses import plan_poses
 from calibration.response import level_image, level_plan
+from core.errors import InputError
+from core.patterns import graycode_patterns
 
 DEFAULT_SCENE = "checkerboard"
 

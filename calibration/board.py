@@ -1,6 +1,6 @@
 """The printed calibration board: its YAML description and its detection in a camera image.
 
-`board.yaml` (ARCHITECTURE.md, File formats):
+`board.yaml` (docs/formats.md):
     type: checkerboard | charuco
     rows, cols: inner corners (checkerboard) / squares (charuco)
     square_mm, marker_mm (charuco), dictionary (charuco, an OpenCV aruco dictionary name)
@@ -19,8 +19,8 @@ import cv2
 import numpy as np
 import yaml
 
-from app.errors import InputError
-from app.yamlfile import load_yaml
+from core.errors import InputError
+from core.yamlfile import load_yaml
 
 TYPES = ("checkerboard", "charuco")
 FILENAME = "board.yaml"

@@ -1,4 +1,4 @@
-"""The calibration capture layout (ARCHITECTURE.md, File formats; stable, other tools write it):
+"""The calibration capture layout (docs/formats.md; stable, other tools write it):
 
     DIR/board.yaml          the board description (calibration/board.py)
     DIR/pose_000/ ...       one frame dump (format v1, scheme graycode, frames tagged with their
@@ -15,20 +15,19 @@ from __future__ import annotations
 import os
 import re
 import shutil
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import yaml
 
-from app.dump import Dump, DumpWriter, read_dump
-from app.errors import InputError
-from app.imageio import read_rgb, write_rgb
-from app.patterns import PatternSet
 from calibration.board import FILENAME as BOARD_FILE
 from calibration.board import Board, load_board
-from calibration.model import Calibration
+from core.calibration import Calibration
+from core.dump import Dump, DumpWriter, read_dump
+from core.errors import InputError
+from core.imageio import read_rgb, write_rgb
+from core.patterns import PatternSet
 
 POSE_RE = re.compile(r"^pose_(\d{3,})$")
 RESPONSE_DIR = "response"
@@ -93,10 +92,6 @@ class Capture:
             raise InputError(f"{where}: frames have different sizes {sorted(shapes)}")
         return PoseFrames(name, frames, meta)
 
-    def iter_poses(self) -> Iterator[PoseFrames]:
-        for name in self.poses:
-            yield self.read_pose(name)
-
     def true_calibration(self) -> Calibration | None:
         """The true calibration a simulated capture carries (dump field `calibration_is_truth`), else None.
 
@@ -155,6 +150,7 @@ class CaptureWriter:
         self.patterns = patterns
         self.count = 0
         self._frame_id = 0
+        self._pattern_files: dict[str, bytes] | None = None  # the first pose's pattern export, reused
 
     def add_pose(
         self,
@@ -172,11 +168,15 @@ class CaptureWriter:
             raise ValueError(f"{len(frames)} frames for {len(self.patterns)} patterns")
         name = f"pose_{self.count:03d}"
         extra = {"calibration_is_truth": True} if calibration is not None and calibration_is_truth else None
-        with DumpWriter(self.folder / name, self.patterns, calibration, extra=extra) as w:
+        with DumpWriter(
+            self.folder / name, self.patterns, calibration, extra=extra, pattern_files=self._pattern_files
+        ) as w:
             for p, img in enumerate(frames):
                 ts = timestamps_ns[p] if timestamps_ns else self._frame_id * 16_666_667
                 w.add(img, p, frame_ids[p] if frame_ids else self._frame_id, ts)
                 self._frame_id += 1
+        if self._pattern_files is None:
+            self._pattern_files = {f.name: f.read_bytes() for f in sorted((self.folder / name / "patterns").iterdir())}
         self.count += 1
         return name
 

@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 
 from calibration.board import Board
-from calibration.model import Calibration
+from core.calibration import Calibration
 
 
 def _look(tilt_x_deg: float, tilt_y_deg: float, roll_deg: float) -> np.ndarray:

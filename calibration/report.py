@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from calibration.model import Calibration
 from calibration.response import Response
 from calibration.solve import RECOMMENDED_POSES, Solution
+from core.calibration import Calibration
 
 
 def views_table(solution: Solution) -> str:

@@ -12,35 +12,31 @@ that opened the rig (the wizard's UI thread); only `camera.grab` runs on the gra
 
 from __future__ import annotations
 
-import importlib
 import threading
 import time
 
 import numpy as np
 
 from app.config import Config
-from app.errors import DeviceError, InputError
-from app.patterns import graycode_patterns
 from calibration.board import Board, detect
 from calibration.correspondence import decode_projector_maps
-from calibration.model import Calibration
 from calibration.preview import PreviewWorker
 from calibration.response import level_image, level_plan
 from calibration.sequence import Take, check_graycode, check_levels, film_stepped, film_triggered
+from core.calibration import Calibration
+from core.errors import DeviceError, InputError
+from core.patterns import graycode_patterns
 from drivers.base import CAMERAS, PROJECTORS, TRIGGERS, CameraTimeoutError
 
 PREVIEW_HZ = 15.0  # trigger rate of the live view: enough to aim the board, light on the CPU
 SETTLE_FRAMES = 3  # no trigger: frames let pass after each flip (camera pipeline latency)
-DEFAULT_DEPTH_RANGE_MM = (100.0, 10000.0)  # validation scan when the config gives no working volume
+VALIDATION_DEPTH_RANGE_MM = (100.0, 10000.0)  # validation scan when the config gives no working volume
 
 
 def open_devices(cfg: Config) -> tuple[object, object, object | None]:
     """Camera, projector and (optional) trigger of `cfg`'s rig section, from the driver registries."""
     from app.rig_devices import make_device, rig_driver  # the live session's device construction, one rule
 
-    names = {cfg.get(f"rig.{k}.driver", None) for k in ("camera", "projector", "trigger")}
-    if "sim" in names:
-        importlib.import_module("drivers.sim.devices")  # registers the "sim" drivers
     cam_name, cam_opts = rig_driver(cfg, "camera", CAMERAS)
     proj_name, proj_opts = rig_driver(cfg, "projector", PROJECTORS)
     trig_name, trig_opts = rig_driver(cfg, "trigger", TRIGGERS, required=False)
@@ -81,7 +77,7 @@ class RigBoardSource:
             f", trigger {self.trigger.name}" if self.trigger is not None else ", no trigger"
         )
         rng = cfg.get("depth_range_mm", None)
-        self.depth_range_mm = tuple(rng) if isinstance(rng, list) and len(rng) == 2 else DEFAULT_DEPTH_RANGE_MM
+        self.depth_range_mm = tuple(rng) if isinstance(rng, list) and len(rng) == 2 else VALIDATION_DEPTH_RANGE_MM
         self.settle, self.preview_hz, self.timeout_s = settle, min(preview_hz, self.rate_hz), timeout_s
         self.patterns = graycode_patterns(tuple(self.projector.size))
         self.meta = {"size": list(self.patterns.size), **self.patterns.params}
@@ -118,9 +114,7 @@ class RigBoardSource:
 
     def pump(self) -> None:
         """Keep a projector window responsive between shows (the wizard's loop calls this)."""
-        poll = getattr(self.projector, "poll", None)
-        if callable(poll):
-            poll()
+        self.projector.poll()
 
     # -- live view
     def _start_live(self) -> None:

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from app.capture import CaptureLoop
-from app.errors import DeviceError
+from core.errors import DeviceError
 from drivers.base import Camera, Projector, Trigger
 
 MAX_TAKES = 6  # takes tried before a pose is given up (the operator retakes it): ~5 s at 60 Hz
@@ -57,19 +57,6 @@ class Take:
         return f"retaken: {len(self.refused)} refused ({why[:160]}); {self.filmed} frames filmed"
 
 
-class _Lent:
-    """A device lent to a capture loop: the loop may stop it but not close it (the wizard keeps it open)."""
-
-    def __init__(self, device: object) -> None:
-        self._device = device
-
-    def __getattr__(self, name: str) -> object:
-        return getattr(self._device, name)
-
-    def close(self) -> None:
-        pass
-
-
 def film_triggered(
     camera: Camera,
     projector: Projector,
@@ -86,8 +73,10 @@ def film_triggered(
 
     The devices must be loaded and not running; they are stopped (not closed) on return.
     """
-    lent = _Lent(camera), _Lent(projector), _Lent(trigger)
-    loop = CaptureLoop(*lent, "graycode", n, rate_hz=rate_hz, timeout_s=timeout_s)  # type: ignore[arg-type]
+    # the loop stops the devices but does not close them: the wizard keeps them open
+    loop = CaptureLoop(
+        camera, projector, trigger, "graycode", n, rate_hz=rate_hz, timeout_s=timeout_s, owns_devices=False
+    )
     # The loop's alternation test (a frame must differ from its predecessor) suits two-shot pairs,
     # not Gray code, whose coarse neighbours can look the same in the view; `check` tests the pixels.
     loop.checker.check_alternation = False

@@ -11,14 +11,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from app.errors import InputError
 from calibration.board import Board, detect
 from calibration.capture import Capture, PoseFrames
 from calibration.correspondence import decode_projector_maps
 from calibration.local_homography import corners_to_projector
-from calibration.model import Calibration
 from calibration.response import Response, measure_response
 from calibration.solve import MIN_POSES, RECOMMENDED_POSES, PoseObservation, Solution, ViewReport, solve
+from core.calibration import Calibration
+from core.errors import InputError
 
 MIN_DECODED_FRACTION = 0.5  # of the detected corners that must get projector coordinates
 

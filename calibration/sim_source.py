@@ -14,8 +14,6 @@ import threading
 import cv2
 import numpy as np
 
-from app.errors import InputError
-from app.patterns import graycode_patterns
 from calibration.auto import fronto_pose, make_rig, rig_board
 from calibration.correspondence import decode_projector_maps
 from calibration.poses import plan_poses
@@ -23,6 +21,8 @@ from calibration.preview import PreviewWorker
 from calibration.response import level_image, level_plan
 from calibration.sequence import Take
 from calibration.validate import plane_scan
+from core.errors import InputError
+from core.patterns import graycode_patterns
 
 
 class SimBoardSource:
@@ -201,6 +201,9 @@ class SimBoardSource:
             f"validation scan of the flat board: {scan.points} points, plane-fit residual {scan.plane_rms_mm:.3f} mm, "
             f"depth error {scan.depth_error_pct:.3f} % vs truth"
         )
+
+    def pump(self) -> None:
+        """No projector window to keep responsive: the virtual rig renders its own light."""
 
     def close(self) -> None:
         with self._spare_cond:

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from calibration.model import Calibration
+from core.calibration import Calibration
 
 MIN_POSES = 5  # fewer cannot constrain two intrinsic sets and the extrinsics with any margin
 RECOMMENDED_POSES = 12

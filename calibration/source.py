@@ -11,11 +11,11 @@ from typing import Protocol
 
 import numpy as np
 
-from app.patterns import PatternSet
 from calibration.board import Board
-from calibration.model import Calibration
 from calibration.preview import PreviewWorker
 from calibration.sequence import Take
+from core.calibration import Calibration
+from core.patterns import PatternSet
 
 
 class BoardSource(Protocol):
@@ -36,4 +36,5 @@ class BoardSource(Protocol):
     def capture(self) -> Take: ...  # the Gray-code sequence on the board as it is (raises PoseNotCaptured)
     def levels(self) -> list[tuple[str, int, np.ndarray]]: ...  # flat colour levels (channel, level, image)
     def validation_scan(self, cal: Calibration) -> str: ...  # scan the board held flat: one line of figures
+    def pump(self) -> None: ...  # between redraws: keep a projector window of the rig responsive
     def close(self) -> None: ...

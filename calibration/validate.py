@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from calibration.model import Calibration
+from core.calibration import Calibration
 
 
 def compare(cal: Calibration, truth: Calibration) -> dict[str, float]:

@@ -26,7 +26,6 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from app.errors import DeviceError, InputError
 from calibration import report
 from calibration.capture import CaptureWriter
 from calibration.correspondence import decode_projector_maps
@@ -34,6 +33,7 @@ from calibration.response import Response, measure_response
 from calibration.sim_source import SimBoardSource
 from calibration.source import BoardSource
 from calibration.wizard_state import WizardState, overlay
+from core.errors import DeviceError, InputError
 
 __all__ = ["SimBoardSource", "WizardWindow", "run_wizard"]
 
@@ -224,9 +224,7 @@ class WizardWindow:
         try:
             while not self.quit:
                 self.win.dispatch_events()
-                pump = getattr(self.src, "pump", None)
-                if pump is not None:
-                    pump()
+                self.src.pump()
                 self.poll()
                 self.on_draw()
                 self.win.flip()

@@ -8,11 +8,11 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from app.errors import DeviceError
+from core.errors import DeviceError
 
 
 @dataclass(frozen=True)
@@ -33,6 +33,7 @@ class CameraTimeoutError(DeviceError):
 @runtime_checkable
 class Camera(Protocol):
     name: str
+    device: str  # what messages call it: model and serial, device path, dump folder
 
     def start(self) -> None: ...
     def grab(self, timeout_s: float = 1.0) -> Frame: ...
@@ -41,12 +42,41 @@ class Camera(Protocol):
 
 
 @runtime_checkable
+class CountingCamera(Camera, Protocol):
+    """A camera that counts what it delivered and lost (`stats`: a dataclass of int counters)."""
+
+    stats: Any
+
+
+@runtime_checkable
 class Projector(Protocol):
+    """Shows loaded patterns full-screen.
+
+    `thread_bound`: every call but `request_stop` must come from the thread that opened it (a pyglet
+    window); the capture loop then shows inline instead of from its projector thread, unless the
+    projector is wrapped to be served by its owner (`app.owner_thread`).
+    `stop_requested`: the operator closed the window or pressed Esc/q in it; the session ends cleanly.
+    """
+
     name: str
     size: tuple[int, int]  # (W, H)
+    thread_bound: bool
 
     def load(self, images: Sequence[np.ndarray]) -> None: ...
-    def show(self, index: int | None) -> None: ...  # None = black
+    def show(self, index: int | None) -> int | None:
+        """Pattern `index` (None = black) from the next refresh on; the flip time (monotonic ns) if known."""
+        ...
+
+    def poll(self) -> bool:
+        """Pump the window's events (between shows); True while nobody asked to stop."""
+        ...
+
+    def request_stop(self) -> None:
+        """Ask the session to end (safe from any thread)."""
+        ...
+
+    @property
+    def stop_requested(self) -> bool: ...
     def close(self) -> None: ...
 
 
@@ -58,6 +88,16 @@ class Trigger(Protocol):
     def stop(self) -> None: ...
     def counter(self) -> int: ...
     def close(self) -> None: ...
+
+
+@runtime_checkable
+class PeekableTrigger(Trigger, Protocol):
+    """A trigger that follows its own event lines: `peek_counter()` answers without asking the device.
+
+    The capture loop peeks between its regular `counter()` queries (which notice a device gone silent).
+    """
+
+    def peek_counter(self) -> int: ...
 
 
 # name -> factory(**options); each driver module registers itself at import.

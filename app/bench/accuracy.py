@@ -46,7 +46,7 @@ def score(column: np.ndarray, depth: np.ndarray | None, gt_column: np.ndarray, g
 
 def run(args: argparse.Namespace) -> list[dict]:
     from app.decode.pipeline import EmptyResultWarning, FrameSetDecoder
-    from app.patterns import make_patterns
+    from core.patterns import make_patterns
     from drivers.sim.rig import VirtualRig
 
     warnings.simplefilter("ignore", EmptyResultWarning)

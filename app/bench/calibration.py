@@ -3,7 +3,7 @@
 Poses the simulated board N times (effects on: noise, blur, crosstalk, gamma), solves as
 `slscan calibrate --auto` does, and compares with the rig's true calibration; then scans the flat
 `plane` scene with Gray code and triangulates it with the recovered calibration (and, for
-reference, with the true one) against the ground-truth depth. Targets from issue 7.
+reference, with the true one) against the ground-truth depth.
 """
 
 from __future__ import annotations
@@ -57,13 +57,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--calibration-seed", type=non_negative_int, default=0, metavar="S", help="pose seed (default 0)"
     )
+    parser.add_argument(
+        "--calibration-rig",
+        type=non_negative_int,
+        default=None,
+        metavar="SEED",
+        help="film the poses through the virtual rig's drivers opened from a rig file (device protocol, "
+        "trigger, 30 Hz), as on real hardware, with sim seed SEED (checkerboard only)",
+    )
 
 
 def plane_depth(cal, truth, decode) -> dict[str, float]:
     """Gray-code scan of the flat `plane` scene, triangulated with `cal` and with the truth."""
-    from app.patterns import graycode_patterns
     from calibration.auto import make_rig
     from calibration.validate import plane_scan
+    from core.patterns import graycode_patterns
 
     rig = make_rig("plane")
     pats = graycode_patterns(rig.projector_size)
@@ -81,6 +89,49 @@ def plane_depth(cal, truth, decode) -> dict[str, float]:
     }
 
 
+RIG_YAML = """\
+rig:
+  camera: &sim {{driver: sim, scene: {scene}, seed: {seed}}}
+  projector: *sim
+  trigger: *sim
+capture:
+  rate_hz: 30
+"""
+
+
+def rig_capture(out: Path, n: int, scene: str, sim_seed: int, pose_seed: int):
+    """Film n poses through the sim drivers of a rig file (RigBoardSource); -> (capture folder, rig).
+
+    30 Hz: the simulated camera renders each frame when grabbed, and on a shared 2-core machine 60 Hz
+    leaves the projector thread too little time to flip before every tick.
+    """
+    from app.config import load_config
+    from calibration.auto import fronto_pose, rig_board
+    from calibration.capture import CaptureWriter
+    from calibration.poses import plan_poses
+    from calibration.rig_source import RigBoardSource
+    from drivers.sim.devices import forget_shared_benches, shared_bench
+
+    out.mkdir(parents=True)
+    path = out.parent / "rig.yaml"
+    path.write_text(RIG_YAML.format(scene=scene, seed=sim_seed))
+    bench = shared_bench(scene=scene, seed=sim_seed)  # what the registry's "sim" devices share
+    rig = bench.rig
+    src = RigBoardSource(load_config(path), rig_board(rig))
+    try:
+        writer = CaptureWriter(out / "capture", src.board, src.patterns)
+        for rvec, tvec in plan_poses(src.board, rig.calibration, n, seed=pose_seed):
+            rig.set_board_pose(rvec, tvec)
+            take = src.capture()
+            writer.add_pose(take.frames, timestamps_ns=take.timestamps_ns, frame_ids=take.frame_ids)
+        rig.set_board_pose(*fronto_pose(src.board, rig))
+        writer.write_response(src.levels(), camera_gamma=float(rig.options.camera_gamma))
+    finally:
+        src.close()
+        forget_shared_benches()
+    return out / "capture", rig
+
+
 def run(args: argparse.Namespace) -> list[dict]:
     from calibration.auto import auto_capture, make_rig
     from calibration.capture import open_capture
@@ -90,11 +141,16 @@ def run(args: argparse.Namespace) -> list[dict]:
 
     n = int(getattr(args, "calibration_poses", 15))
     scene = getattr(args, "calibration_scene", "checkerboard")
-    rig = make_rig(scene)
-    truth = rig.calibration
+    pose_seed = int(getattr(args, "calibration_seed", 0))
+    sim_seed = getattr(args, "calibration_rig", None)
     with tempfile.TemporaryDirectory(prefix="slscan-bench-cal-") as tmp:
         t0 = time.perf_counter()
-        folder = auto_capture(Path(tmp) / "capture", n, rig=rig, seed=int(getattr(args, "calibration_seed", 0)))
+        if sim_seed is None:
+            rig = make_rig(scene)
+            folder = auto_capture(Path(tmp) / "capture", n, rig=rig, seed=pose_seed)
+        else:
+            folder, rig = rig_capture(Path(tmp) / "rig", n, scene, int(sim_seed), pose_seed)
+        truth = rig.calibration
         t1 = time.perf_counter()
         result = solve_capture(open_capture(folder))
         t2 = time.perf_counter()

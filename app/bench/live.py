@@ -1,4 +1,4 @@
-"""`slscan bench --live`: the live session on the virtual rig at 640x480 (issue 6 targets).
+"""`slscan bench --live`: the live session on the virtual rig at 640x480 (targets in docs/performance.md).
 
 Three measurements, each a table row:
 - live: the whole pipeline (trigger-paced capture, decode worker(s), no view) for N frames:
@@ -23,7 +23,7 @@ import time
 import numpy as np
 
 from app.argtypes import positive_int
-from app.pipeline import DECODE_WORKERS, WORKERS_HELP
+from app.live_pipeline import DECODE_WORKERS, WORKERS_HELP
 
 FLAG = "--live"
 KEY = "live"
@@ -53,8 +53,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _live_row(frames: int, workers: int) -> dict:
-    from app.commands.live import build_session
-    from app.pipeline import LivePipeline
+    from app.live_pipeline import LivePipeline
+    from app.session import build_session
 
     session = build_session(None)
     processor = session.processor()
@@ -84,7 +84,7 @@ def _live_row(frames: int, workers: int) -> dict:
         "decode_ms": round(fig["decode_ms_p50"], 1),
         "triangulate_ms": round(fig["triangulate_ms_p50"], 1),
         "dropped": fig["dropped"],
-        "refused": fig["mispaired"],
+        "refused": fig["refused"],
         "mispaired": mispaired,
         "stale_sets": fig["stale_sets"],
         "lost": 0,
@@ -95,8 +95,8 @@ def _live_row(frames: int, workers: int) -> dict:
 
 def _view_row(repeats: int = 30) -> dict:
     """The operator view's image work per shown result at 640x480, without a window (pure functions)."""
-    from app.commands.live import build_session
-    from app.pipeline import LivePipeline
+    from app.live_pipeline import LivePipeline
+    from app.session import build_session
     from app.view import PointPanel, depth_panel, stripe_panel
 
     session = build_session(None)
@@ -133,7 +133,7 @@ def _view_row(repeats: int = 30) -> dict:
 
 
 def _pairing_row(frames: int) -> dict:
-    from app.commands.live import build_session
+    from app.session import build_session
 
     session = build_session(None, sim_overrides={"faults": FAULTS, "seed": 7})
     cam = session.sim.camera
@@ -177,9 +177,9 @@ def _record_row(frames: int, png_level: int) -> dict:
     import tempfile
     from pathlib import Path
 
-    from app.commands.live import build_session, open_recorder
-    from app.dump import read_dump
-    from app.pipeline import LivePipeline
+    from app.live_pipeline import LivePipeline
+    from app.session import build_session, open_recorder
+    from core.dump import read_dump
 
     session = build_session(None)
     with tempfile.TemporaryDirectory(prefix="slscan-bench-rec-") as tmp:
@@ -202,7 +202,7 @@ def _record_row(frames: int, png_level: int) -> dict:
         "decode_ms": "",
         "triangulate_ms": "",
         "dropped": fig["dropped"],
-        "refused": fig["mispaired"],
+        "refused": fig["refused"],
         "mispaired": "",
         "stale_sets": "",
         "lost": stats.lost + (pipe.capture.confirmed - on_disk if not stats.lost else 0),

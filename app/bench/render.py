@@ -25,7 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> list[dict]:
-    from app.patterns import two_shot_patterns
+    from core.patterns import two_shot_patterns
     from drivers.sim.rig import VirtualRig
 
     scene = getattr(args, "render_scene", "face")

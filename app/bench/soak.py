@@ -1,4 +1,4 @@
-"""`slscan bench --soak --minutes M`: the live pipeline, headless, on the virtual rig for M minutes (issue 8).
+"""`slscan bench --soak --minutes M`: the live pipeline, headless, on the virtual rig for M minutes.
 
 A production bench runs for hours; this shows whether one session stays healthy: process memory
 (RSS start / end / peak, and its slope over the second half, where warm-up is over), thread count
@@ -107,8 +107,8 @@ def soak(
     """Run the live pipeline for `minutes`; returns the figures (see module docstring).
 
     sim_overrides: extra `sim:` keys of config/sim.yaml (tests run it at 320x240)."""
-    from app.commands.live import build_session
-    from app.pipeline import LivePipeline
+    from app.live_pipeline import LivePipeline
+    from app.session import build_session
 
     before = sample()  # before the session exists: what the process holds without it
     overrides = {**(sim_overrides or {}), "seed": seed, **({"faults": FAULTS} if faults else {})}
@@ -191,7 +191,7 @@ def soak(
         "untracked": cap["untracked"],
         "refused": cap["refused"],
         "resyncs": cap["resyncs"],
-        "camera_overrun": getattr(cam, "dropped", 0),
+        "camera_overrun": cam.dropped,  # the virtual rig's camera: frames lost to a slow consumer
         "stale_sets": fig["stale_sets"],
         "decode_failed": pipe.stats.failed,
         "latency_ms_p95": round(fig["latency_ms_p95"], 1),
@@ -201,7 +201,7 @@ def soak(
 
 
 def run(args: argparse.Namespace) -> list[dict]:
-    from app.errors import InputError
+    from core.errors import InputError
 
     minutes, sample_s = getattr(args, "minutes", 30.0), getattr(args, "soak_sample", 30.0)
     if not minutes > 0:

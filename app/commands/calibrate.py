@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 
 from app.argtypes import non_negative_int, positive_float, positive_int
-from app.errors import InputError
+from core.errors import InputError
 
 HELP = "calibrate camera and projector with a printed board and Gray code (wizard, --auto, --from)"
 

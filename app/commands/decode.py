@@ -13,12 +13,12 @@ import cv2
 
 from app.argtypes import non_negative_int
 from app.decode.pipeline import EmptyResultWarning, FrameSetDecoder
-from app.dump import Dump, read_dump
-from app.errors import InputError
 from app.export import depth_preview, stripe_colours, write_depth_png16, write_depth_tiff, write_ply, write_png
 from app.framesets import group_frame_sets
 from app.fsutil import atomic_directory
-from calibration.model import Calibration
+from core.calibration import Calibration
+from core.dump import Dump, read_dump
+from core.errors import InputError
 
 HELP = "decode a frame dump offline: depth TIFF, PLY cloud and stripe PNG per frame set"
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from app.errors import SlscanError
+from core.errors import SlscanError
 
 HELP = "list cameras (per GenTL producer and V4L2), screens and serial ports"
 

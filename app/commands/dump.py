@@ -7,11 +7,11 @@ import sys
 import time
 
 from app.argtypes import positive_float, positive_int
-from app.dump import repair_dump
-from app.errors import InputError
+from app.live_pipeline import LivePipeline
 from app.owner_thread import HandOver
-from app.patterns import SCHEMES
-from app.pipeline import LivePipeline
+from core.dump import repair_dump
+from core.errors import InputError
+from core.patterns import SCHEMES
 
 HELP = "record tagged camera frames from the rig as a frame dump (or --repair one whose writer was killed)"
 
@@ -58,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--frames {args.frames}: must be at least 1")
     from pathlib import Path
 
-    from app.commands.live import build_session, describe, open_recorder
+    from app.session import build_session, describe, open_recorder
 
     out = Path(args.out)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):  # before opening any device

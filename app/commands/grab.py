@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 
@@ -10,9 +11,10 @@ import yaml
 
 from app.argtypes import positive_float, positive_int
 from app.config import load_config
-from app.errors import InputError
 from app.fsutil import atomic_directory
-from app.imageio import write_rgb
+from core.errors import InputError
+from core.imageio import write_rgb
+from drivers.base import CountingCamera
 from drivers.camera.errors import EndOfDumpError
 from drivers.camera.spec import open_camera
 
@@ -72,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
         label = f"{cfg.path} rig.camera"
     with atomic_directory(args.out, overwrite=args.force) as tmp:
         camera = open_camera(spec)  # type: ignore[arg-type]
-        device = str(getattr(camera, "device", getattr(camera, "name", label)))
+        device = str(camera.device)
         entries: list[dict] = []
         t0 = time.monotonic()
         try:
@@ -98,9 +100,8 @@ def run(args: argparse.Namespace) -> int:
         finally:
             camera.close()
         index: dict = {"format": "slscan-grab", "version": 1, "camera": label, "device": device, "frames": entries}
-        stats = getattr(camera, "stats", None)
-        if stats is not None and hasattr(stats, "__dataclass_fields__"):
-            index["stats"] = {k: int(getattr(stats, k)) for k in stats.__dataclass_fields__}
+        if isinstance(camera, CountingCamera):
+            index["stats"] = {k: int(v) for k, v in dataclasses.asdict(camera.stats).items()}
         (tmp / "frames.yaml").write_text(yaml.safe_dump(index, sort_keys=False))
     if entries:
         ids = f"frame ids {entries[0]['frame_id']}..{entries[-1]['frame_id']}"

@@ -5,8 +5,9 @@ from __future__ import annotations
 import argparse
 
 from app.fsutil import atomic_directory
-from app.pattern_export import write_patterns
-from app.patterns import SCHEMES, make_patterns, parse_size
+from app.schemes import get_scheme, pattern_options
+from core.pattern_export import write_patterns
+from core.patterns import SCHEMES, make_patterns, parse_size
 
 HELP = "write the pattern images of a scheme (PNGs + patterns.yaml) for any projector size"
 
@@ -39,11 +40,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     size = parse_size(args.size)
-    options: dict = {}
-    if args.scheme == "one-shot":
-        options = {"k": args.k, "colors": args.colors, "stripe_width": args.stripe_width}
-    elif args.scheme == "two-shot":
-        options = {"k": args.k, "channels": args.channels, "stripe_width": args.stripe_width}
+    options = pattern_options(get_scheme(args.scheme), args)
     patterns = make_patterns(args.scheme, size, **options)
     with atomic_directory(args.out, overwrite=args.force) as tmp:
         write_patterns(patterns, tmp)

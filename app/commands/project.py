@@ -5,8 +5,9 @@ from __future__ import annotations
 import argparse
 
 from app.argtypes import non_negative_float, positive_float
-from app.errors import InputError
-from app.patterns import SCHEMES, make_patterns, parse_size
+from app.schemes import get_scheme, pattern_options
+from core.errors import InputError
+from core.patterns import SCHEMES, make_patterns, parse_size
 
 HELP = "show a scheme's patterns fullscreen on a screen (the projector) and measure the flip rate"
 
@@ -51,11 +52,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _scheme_options(args: argparse.Namespace) -> dict:
-    if args.scheme == "one-shot":
-        return {"k": args.k, "colors": args.colors, "stripe_width": args.stripe_width}
-    if args.scheme == "two-shot":
-        return {"k": args.k, "channels": args.channels, "stripe_width": args.stripe_width}
-    return {}
+    return pattern_options(get_scheme(args.scheme), args)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -7,8 +7,8 @@ import argparse
 import numpy as np
 
 from app.argtypes import positive_float, positive_int
-from app.errors import InputError
-from app.pipeline import DECODE_WORKERS, WORKERS_HELP
+from app.live_pipeline import DECODE_WORKERS, WORKERS_HELP
+from core.errors import InputError
 
 HELP = "play a frame dump through the live pipeline and view (or --headless)"
 
@@ -41,9 +41,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def replay_session(dump_path: str, calibration: str | None = None, realtime: bool = False):
     """A Session whose camera is the replay camera over `dump_path` (no projector, no trigger)."""
-    from app.commands.live import Session
-    from app.dump import read_dump
-    from calibration.model import Calibration
+    from app.session import Session
+    from core.calibration import Calibration
+    from core.dump import read_dump
     from drivers.camera.replay import ReplayCamera
 
     dump = read_dump(dump_path)
@@ -85,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
         return run_headless(session, args, label="replay")
     import os
 
-    from app.errors import DeviceError
+    from core.errors import DeviceError
 
     if not os.environ.get("DISPLAY"):
         raise DeviceError("no display for the view (DISPLAY is not set): run `slscan replay DUMP --headless` instead")

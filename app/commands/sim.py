@@ -9,8 +9,9 @@ import numpy as np
 import yaml
 
 from app.argtypes import non_negative_int, positive_int
-from app.errors import InputError
-from app.patterns import SCHEMES, make_patterns
+from app.schemes import get_scheme, pattern_options
+from core.errors import InputError
+from core.patterns import SCHEMES, make_patterns
 
 HELP = "the virtual rig: render a frame dump with ground truth (render), list scene presets (scenes)"
 
@@ -88,7 +89,7 @@ def run_scenes(args: argparse.Namespace) -> int:
 
 def write_ground_truth(gt: object, folder: Path) -> None:
     """depth.tiff (Z mm, 0 = none), column.tiff / row.tiff (NaN where not lit), lit.png (255 = lit)."""
-    from app.imageio import write_float_tiff, write_rgb
+    from core.imageio import write_float_tiff, write_rgb
 
     folder.mkdir(parents=True, exist_ok=True)
     write_float_tiff(folder / "depth.tiff", gt.depth)
@@ -98,8 +99,8 @@ def write_ground_truth(gt: object, folder: Path) -> None:
 
 
 def run_render(args: argparse.Namespace) -> int:
-    from app.dump import DumpWriter
-    from app.patterns import parse_size
+    from core.dump import DumpWriter
+    from core.patterns import parse_size
     from drivers.sim.rig import VirtualRig
 
     if args.cycles < 1:
@@ -115,11 +116,7 @@ def run_render(args: argparse.Namespace) -> int:
     if args.camera_size:
         overrides["camera_size"] = parse_size(args.camera_size)
     rig = VirtualRig.from_preset(args.scene, ideal=args.ideal, **overrides)
-    options: dict = {}
-    if args.scheme == "one-shot":
-        options = {"k": args.k, "colors": args.colors, "stripe_width": args.stripe_width}
-    elif args.scheme == "two-shot":
-        options = {"k": args.k, "channels": args.channels, "stripe_width": args.stripe_width}
+    options = pattern_options(get_scheme(args.scheme), args)
     patterns = make_patterns(args.scheme, rig.projector_size, **options)
     prepared = [rig.prepare(img) for img in patterns.images]
     extra = {"source": f"slscan sim render --scene {rig.scene.name}"}

@@ -1,4 +1,4 @@
-"""Undoing the camera's colour crosstalk (ARCHITECTURE.md: color_mixing).
+"""Undoing the camera's colour crosstalk (the calibration's `color_mixing`, docs/formats.md).
 
 `color_mixing` holds the linear camera R, G, B (rows) produced by each projector primary
 (columns); only each column's direction matters. We scale every column so its own channel is 1
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.patterns import CHANNEL_INDEX
+from core.patterns import CHANNEL_INDEX
 
 
 def unmixing_matrix(color_mixing: np.ndarray | None) -> np.ndarray:

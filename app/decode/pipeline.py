@@ -9,13 +9,12 @@ import numpy as np
 
 from app.decode.colour import camera_gamma_of
 from app.decode.fast import average_frames
-from app.decode.graycode import GrayCodeDecoder
-from app.decode.oneshot import OneShotDecoder
 from app.decode.stripemap import StripeMap
-from app.decode.twoshot import SEGMENTATIONS, TwoShotDecoder, TwoShotParams
-from app.errors import InputError
+from app.decode.twoshot import SEGMENTATIONS
+from app.schemes import get_scheme
 from app.triangulate import PointCloud, Triangulator
-from calibration.model import Calibration
+from core.calibration import Calibration
+from core.errors import InputError
 
 DEFAULT_DEPTH_RANGE_MM = (100.0, 5000.0)
 
@@ -25,7 +24,7 @@ class EmptyResultWarning(UserWarning):
 
 
 @dataclass
-class Result:
+class DecodedSet:
     stripes: StripeMap
     depth: np.ndarray | None  # float32 mm, 0 = none; None without calibration
     cloud: PointCloud | None
@@ -47,7 +46,8 @@ class FrameSetDecoder:
         (TwoShotParams: both covers grazing surfaces a little better at twice the time)."""
         if segmentation is not None and segmentation not in SEGMENTATIONS:
             raise InputError(f"segmentation {segmentation!r}: choose {', '.join(SEGMENTATIONS)}")
-        self.scheme = scheme
+        self.kind = get_scheme(scheme)  # an unknown name is an InputError
+        self.scheme = self.kind.name
         self.calibration = calibration
         self.triangulator = None
         column_range = None
@@ -64,15 +64,7 @@ class FrameSetDecoder:
             column_range = self.triangulator.column_range
             mixing = calibration.color_mixing
             gamma = camera_gamma_of(calibration)
-        if scheme == "two-shot":
-            params = TwoShotParams(segmentation=segmentation) if segmentation else None
-            self.decoder = TwoShotDecoder(pattern_meta, proj_w, mixing, column_range, params, camera_gamma=gamma)
-        elif scheme == "one-shot":
-            self.decoder = OneShotDecoder(pattern_meta, proj_w, mixing, column_range, camera_gamma=gamma)
-        elif scheme == "graycode":
-            self.decoder = GrayCodeDecoder(pattern_meta, column_range)
-        else:
-            raise InputError(f"unknown scheme {scheme!r}")
+        self.decoder = self.kind.make_decoder(pattern_meta, proj_w, mixing, column_range, segmentation, gamma)
         self.shots = self.decoder.shots
 
     def check_frames(self, frames: list[np.ndarray], where: str = "frame set") -> None:
@@ -92,25 +84,24 @@ class FrameSetDecoder:
         its depth map: the per-frame work of decode() without the texture and the point cloud. The two-shot
         decoder triangulates row by row in its own pass where the triangulator has the closed form."""
         depth = None
-        if self.scheme == "two-shot":
-            geometry = self.triangulator.moebius_geometry if self.triangulator is not None else None
-            if geometry is not None:
-                sm, depth = self.decoder.decode_depth(frames[0], frames[1], geometry)
-            else:
-                sm = self.decoder.decode(frames[0], frames[1])
-        elif self.scheme == "one-shot":
-            sm = self.decoder.decode(frames[0])
+        geometry = self.triangulator.moebius_geometry if self.triangulator is not None else None
+        if self.kind.depth_in_decode and geometry is not None:
+            sm, depth = self.decoder.decode_depth(frames[0], frames[1], geometry)
         else:
-            sm = self.decoder.decode(frames)
+            sm = self.stripes(frames)
         if depth is None and self.triangulator is not None:
             depth = self.triangulator.depth(sm.column)
         return sm, depth
 
-    def decode(self, frames: list[np.ndarray], reversed_order: bool = False, where: str = "frame set") -> Result:
-        """frames in pattern order (frames[p] saw pattern p); reversed_order only tells a two-shot pair's timing."""
+    def stripes(self, frames: list[np.ndarray] | tuple[np.ndarray, ...]) -> StripeMap:
+        """The stripe map alone of a frame set in pattern order (no checks, no triangulation)."""
+        return self.kind.stripes(self.decoder, frames)
+
+    def decode(self, frames: list[np.ndarray], where: str = "frame set") -> DecodedSet:
+        """frames in pattern order (frames[p] saw pattern p; their order in time does not matter)."""
         self.check_frames(frames, where)
         sm, depth = self.stripes_and_depth(frames)
-        texture = average_frames_of(frames[0], frames[1]) if self.scheme == "two-shot" else frames[0]
+        texture = average_frames_of(frames[0], frames[1]) if self.kind.shots == 2 else frames[0]  # stripes cancel
         if not sm.valid.any():
             warnings.warn(
                 f"{where}: nothing decoded (dark, empty or unlit scene): empty depth map",
@@ -120,7 +111,7 @@ class FrameSetDecoder:
         cloud = None
         if self.triangulator is not None:
             cloud = self.triangulator.points(depth, texture)
-        return Result(sm, depth, cloud, texture)
+        return DecodedSet(sm, depth, cloud, texture)
 
 
 def average_frames_of(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -56,9 +56,3 @@ class StripeMap:
     @property
     def shape(self) -> tuple[int, int]:
         return self.column.shape  # type: ignore[return-value]
-
-
-def empty_stripe_map(shape: tuple[int, int], stripe_width: int = 1, period: int = 0) -> StripeMap:
-    return StripeMap(
-        np.full(shape, np.nan, np.float32), np.zeros(shape, np.float32), stripe_width=stripe_width, period=period
-    )

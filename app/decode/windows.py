@@ -9,7 +9,7 @@ import numpy as np
 
 from app.decode import fast
 from app.decode.stripemap import StripeMap
-from app.patterns import window_table
+from core.patterns import window_table
 
 EMPTY_RANGE = np.zeros((1, 1), np.float32)
 

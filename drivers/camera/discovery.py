@@ -15,7 +15,7 @@ import os
 from collections.abc import Sequence
 from typing import Any
 
-from app.errors import DeviceError
+from core.errors import DeviceError
 from drivers.camera.genicam import info_field
 from drivers.camera.gentl import HUB, env_producers, producer_paths
 from drivers.camera.v4l2 import list_v4l2_devices

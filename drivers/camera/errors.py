@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from app.errors import DeviceError
+from core.errors import DeviceError
 from drivers.base import CameraTimeoutError
 
 __all__ = [

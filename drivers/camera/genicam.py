@@ -15,7 +15,7 @@ Options (config `rig.camera:` keys or `--camera genicam:key=value,...`):
   policy         newest (default: live use; older waiting buffers are skipped and counted) or
                  oldest (every frame in order, e.g. recording)
 
-Buffers (the pitfalls of FIELD-NOTES.md): every fetch has a timeout; the pixels are converted
+Buffers (harvesters' pitfalls): every fetch has a timeout; the pixels are converted
 into a new array while the buffer is still ours and the buffer is queued back in a `finally`;
 incomplete buffers are dropped and counted; frame-id gaps are counted as lost frames.
 """
@@ -28,7 +28,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from app.errors import InputError, SlscanError
+from core.errors import InputError, SlscanError
 from drivers.base import CAMERAS, Frame, register
 from drivers.camera import pixels
 from drivers.camera.errors import (

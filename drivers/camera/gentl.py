@@ -1,6 +1,6 @@
 """GenTL producers and the process's one harvesters `Harvester`.
 
-Measured on this machine (FIELD-NOTES.md): a second `Harvester` in one process sees 0 devices
+Measured on the development machine: a second `Harvester` in one process sees 0 devices
 until the first is reset, and `Harvester.update()` destroys every open image acquirer. So the
 whole process shares one Harvester through `HUB`; it re-enumerates only while no camera is open,
 and refuses (clearly) to load a new producer while one is.

@@ -1,6 +1,6 @@
 """GenICam (PFNC) pixel formats -> RGB arrays. Pure: bytes in, arrays out, no device.
 
-Output convention (the program's, ARCHITECTURE.md): RGB, shape (H, W, 3). 8-bit formats give
+Output convention (the program's, docs/formats.md): RGB, shape (H, W, 3). 8-bit formats give
 uint8. Deeper formats (10, 12, 14, 16 bits) give uint16 shifted left to fill 16 bits
 (value << (16 - bits)), so 65535-ish means "clipped" whatever the sensor depth and a
 decoder's thresholds do not depend on the camera model; the shift is exact and reversible.

@@ -22,8 +22,8 @@ import time
 from collections.abc import Iterator
 from typing import Any
 
-from app.dump import Dump, read_dump
-from app.errors import InputError
+from core.dump import Dump, read_dump
+from core.errors import InputError
 from drivers.base import CAMERAS, Frame, register
 from drivers.camera.errors import CameraStoppedError, CameraTimeoutError, EndOfDumpError
 from drivers.camera.spec import as_bool
@@ -86,11 +86,6 @@ class ReplayCamera:
     def close(self) -> None:
         self.stop()
         self._closed = True
-
-    def rewind(self) -> None:
-        self.position, self.lap = 0, 0
-        if self._streaming:
-            self.start()
 
     def _timestamp(self, i: int) -> int:
         return self.dump.frames[i].timestamp_ns + self.lap * self._ts_period

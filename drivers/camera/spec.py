@@ -13,19 +13,15 @@ the same thing as a mapping: {driver: genicam, serial: "21234567", pixel_format:
 
 from __future__ import annotations
 
-import contextlib
-import importlib
 import inspect
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from app.errors import InputError
-from drivers.base import CAMERAS, Camera
+from core.errors import InputError
+from drivers.base import Camera
 
 MAIN_ARGUMENT = {"v4l2": "device", "replay": "dump", "genicam": "device_id"}
-DRIVER_MODULES = ("drivers.camera.genicam", "drivers.camera.v4l2", "drivers.camera.replay")
-OPTIONAL_MODULES = ("drivers.sim.devices",)  # written elsewhere; absent until it exists
 
 TRUE = {"1", "true", "yes", "on"}
 FALSE = {"0", "false", "no", "off"}
@@ -77,13 +73,10 @@ def as_bool(name: str, value: Any) -> bool:
 
 
 def load_camera_drivers() -> dict[str, Any]:
-    """Import every camera driver so it registers itself; return the registry."""
-    for mod in DRIVER_MODULES:
-        importlib.import_module(mod)
-    for mod in OPTIONAL_MODULES:
-        with contextlib.suppress(ImportError):
-            importlib.import_module(mod)
-    return CAMERAS
+    """Import every camera driver so it registers itself (drivers.registry); return the registry."""
+    from drivers import registry
+
+    return registry.load("camera")
 
 
 def open_camera(spec: str | CameraSpec | Mapping[str, Any]) -> Camera:

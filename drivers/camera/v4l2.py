@@ -11,7 +11,7 @@ reads never overlap. Frame ids count from 1 per start (OpenCV does not expose th
 sequence number); timestamps are the buffer's V4L2 time (CLOCK_MONOTONIC, via
 CAP_PROP_POS_MSEC) when the backend gives one, else host monotonic time at read.
 
-No /dev/video* exists on the development machines; tests mock cv2.VideoCapture (FIELD-NOTES.md).
+No /dev/video* exists on the development machines; tests mock cv2.VideoCapture.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from app.errors import InputError
+from core.errors import InputError
 from drivers.base import CAMERAS, Frame, register
 from drivers.camera.errors import (
     CameraStoppedError,

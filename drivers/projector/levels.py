@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.errors import InputError
+from core.errors import InputError
 
 
 def levels_lut(gamma: float = 1.0, brightness: float = 1.0) -> np.ndarray:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import os
 from typing import Any
 
-from app.errors import DeviceError
+from core.errors import DeviceError
 
 # One X connection per display name: pyglet never closes a display connection, so reuse it.
 _displays: dict[str, Any] = {}

@@ -34,8 +34,8 @@ from typing import Any
 
 import numpy as np
 
-from app.errors import DeviceError, InputError
-from app.patterns import parse_size
+from core.errors import DeviceError, InputError
+from core.patterns import parse_size
 from drivers.base import PROJECTORS, register
 from drivers.projector.levels import apply_levels, levels_lut
 from drivers.projector.screens import display_name, find_screen, import_pyglet
@@ -71,6 +71,7 @@ class PygletProjector:
 
     name: str
     size: tuple[int, int]
+    thread_bound = True  # pyglet: every call but request_stop from the thread that opened the window
 
     def __init__(
         self,

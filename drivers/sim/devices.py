@@ -25,7 +25,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from app.errors import DeviceError, InputError
+from core.errors import DeviceError, InputError
 from drivers.base import CAMERAS, PROJECTORS, TRIGGERS, CameraTimeoutError, Frame, register
 from drivers.sim.rig import PreparedPattern, VirtualRig
 
@@ -201,18 +201,20 @@ class SimProjector:
     """Holds the prepared patterns; `show(i)` applies from the next trigger tick."""
 
     name = "sim"
+    thread_bound = False  # no window: any thread may call it
 
     def __init__(self, bench: SimBench) -> None:
         self.bench = bench
         self.size = bench.rig.projector_size
         self._closed = False
+        self.stop_requested = False  # nobody closes a window that is not there; request_stop sets it
 
     def load(self, images: Sequence[np.ndarray]) -> None:
         prepared = [self.bench.rig.prepare(img) for img in images]  # checks each size
         with self.bench.cond:
             self.bench.patterns = prepared
 
-    def show(self, index: int | None) -> None:
+    def show(self, index: int | None) -> int | None:
         b = self.bench
         if self._closed:
             raise DeviceError("sim projector: closed")
@@ -222,6 +224,13 @@ class SimProjector:
             b.flips.append((b._abs_locked(), index, time.monotonic_ns()))
             if len(b.flips) > 4096:  # keep the history bounded; old entries are never asked for
                 del b.flips[: len(b.flips) - 2048]
+        return None  # the flip time is the trigger tick's, which the loop knows
+
+    def poll(self) -> bool:
+        return not self.stop_requested
+
+    def request_stop(self) -> None:
+        self.stop_requested = True
 
     @property
     def flips(self) -> list[tuple[int, int | None, int]]:
@@ -240,6 +249,7 @@ class SimCamera:
     """Renders one frame per trigger tick with the pattern shown at that tick."""
 
     name = "sim"
+    device = "sim"
 
     def __init__(self, bench: SimBench) -> None:
         self.bench = bench

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from app.errors import InputError
-from calibration.model import Calibration
+from core.calibration import Calibration
+from core.errors import InputError
 from drivers.sim.kernels import affine3
 
 

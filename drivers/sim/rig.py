@@ -21,13 +21,12 @@ from __future__ import annotations
 import dataclasses
 import threading
 from dataclasses import dataclass, field, fields
-from pathlib import Path
 
 import cv2
 import numpy as np
 
-from app.errors import InputError
-from calibration.model import Calibration
+from core.calibration import Calibration
+from core.errors import InputError
 from drivers.sim.kernels import affine3, light_to_linear, sensor, warm_up
 from drivers.sim.optics import Geometry, camera_rays, project
 from drivers.sim.scene import Board, Scene, SceneError, load_scene
@@ -544,15 +543,9 @@ def demosaic_rggb(img: np.ndarray) -> np.ndarray:
 
 def _int_pair(v: object, key: str, where: str) -> tuple[int, int]:
     if isinstance(v, str):
-        from app.patterns import parse_size
+        from core.patterns import parse_size
 
         return parse_size(v)
     if not (isinstance(v, list | tuple) and len(v) == 2 and all(isinstance(x, int | np.integer) for x in v)):
         raise InputError(f"{where}: '{key}' must be [w, h] whole numbers, found {v!r}")
     return int(v[0]), int(v[1])
-
-
-def preset_names() -> list[str]:
-    from drivers.sim.scene import SCENES_DIR
-
-    return sorted(p.stem for p in Path(SCENES_DIR).glob("*.yaml"))

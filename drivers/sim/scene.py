@@ -28,8 +28,8 @@ import cv2
 import numpy as np
 import yaml
 
-from app.errors import InputError
-from app.yamlfile import load_yaml_mapping
+from core.errors import InputError
+from core.yamlfile import load_yaml_mapping
 from drivers.sim.optics import Geometry
 from drivers.sim.shapes import Box, Cylinder, Material, Rectangle, Relief, Shape, Sphere
 from drivers.sim.textures import Bands, Charuco, Checkerboard, Patches, Stickers, Texture, Uniform
@@ -56,7 +56,7 @@ class Board:
         return self.texture.corners()
 
     def board_yaml(self) -> dict:
-        """The board as ARCHITECTURE.md's board.yaml describes it (only its documented fields)."""
+        """The board as board.yaml (docs/formats.md) describes it (only its documented fields)."""
         keys = ("type", "rows", "cols", "square_mm") + (
             ("marker_mm", "dictionary") if self.spec["type"] == "charuco" else ()
         )

@@ -1,6 +1,6 @@
 """Typed trigger-box errors: each is a DeviceError, printed by the CLI as one line naming the port."""
 
-from app.errors import DeviceError
+from core.errors import DeviceError
 
 
 class TriggerError(DeviceError):

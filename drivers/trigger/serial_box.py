@@ -23,7 +23,7 @@ from collections.abc import Iterator
 
 import serial
 
-from app.errors import InputError
+from core.errors import InputError
 from drivers.base import TRIGGERS, register
 from drivers.trigger import protocol as proto
 from drivers.trigger.errors import (
@@ -187,9 +187,6 @@ class SerialTriggerBox:
         """
         self._raise_fault()
         return self.last_count
-
-    def phase_of(self, count: int) -> int:
-        return (count - 1) % self.cycle
 
     # -- other box commands -----------------------------------------------------------------
     def status(self) -> dict[str, object]:

@@ -23,7 +23,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from app.errors import DeviceError
+from core.errors import DeviceError
 
 FIRMWARE_DIR = Path(__file__).resolve().parent / "firmware"
 F_CPU = 16_000_000

@@ -9,9 +9,9 @@ import pytest
 import yaml
 
 from app.cli import build_parser, main
-from app.imageio import read_rgb
-from app.pattern_export import read_patterns
-from app.patterns import graycode_patterns, one_shot_patterns, two_shot_patterns
+from core.imageio import read_rgb
+from core.pattern_export import read_patterns
+from core.patterns import graycode_patterns, one_shot_patterns, two_shot_patterns
 
 
 @pytest.mark.parametrize(

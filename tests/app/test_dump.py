@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.dump import DumpWriter, read_dump
-from app.errors import InputError
-from app.patterns import two_shot_patterns
-from calibration.model import Calibration
+from core.calibration import Calibration
+from core.dump import DumpWriter, read_dump
+from core.errors import InputError
+from core.patterns import two_shot_patterns
 
 
 def small_calibration() -> Calibration:

@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from app.errors import InputError
-from app.patterns import (
+from core.errors import InputError
+from core.patterns import (
     PALETTE,
     gray_code_bits,
     graycode_patterns,

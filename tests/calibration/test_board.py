@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import yaml
 
-from app.errors import InputError
 from calibration.board import Board, board_from_dict, detect, load_board
+from core.errors import InputError
 
 GOOD = {"type": "checkerboard", "rows": 7, "cols": 10, "square_mm": 12.0}
 CHARUCO = {"type": "charuco", "rows": 8, "cols": 11, "square_mm": 12.0, "marker_mm": 9.0, "dictionary": "DICT_5X5_100"}

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 import yaml
 
-from app.bench.calibration import GEOMETRY_TARGETS as TARGETS  # issue 7
-from app.dump import DumpWriter, read_dump
-from app.patterns import graycode_patterns
+from app.bench.calibration import GEOMETRY_TARGETS as TARGETS
 from calibration.board import Board
-from calibration.model import Calibration
 from calibration.validate import compare
+from core.calibration import Calibration
+from core.dump import DumpWriter, read_dump
+from core.patterns import graycode_patterns
 
 
 def one_line_error(proc) -> str:
@@ -45,7 +45,7 @@ def test_from_a_folder_that_is_not_a_capture(run_cli, tmp_path):
 
 
 def test_a_pose_recorded_with_another_scheme(run_cli, tmp_path):
-    from app.patterns import two_shot_patterns
+    from core.patterns import two_shot_patterns
 
     cap = tmp_path / "cap"
     cap.mkdir()

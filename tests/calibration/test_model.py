@@ -6,8 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
-from app.errors import InputError
-from calibration.model import Calibration
+from core.calibration import Calibration
+from core.errors import InputError
 
 
 def make() -> Calibration:

@@ -1,7 +1,7 @@
 """The wizard's rig path: devices opened from the driver registries (the `sim` drivers, through the
 same device protocol as real hardware), scripted without a window: the test's "hand" poses the
 simulated board, the source films the Gray code with one checked frame per pattern, the wizard's
-state keeps the poses, and the capture solves to the issue's targets against the rig's truth.
+state keeps the poses, and the capture solves to the bench's geometry targets against the rig's truth.
 Injected faults (dropped, swapped, late frames) make the pose be retaken, never saved wrong.
 """
 
@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.bench.calibration import GEOMETRY_TARGETS as TARGETS  # issue 7
+from app.bench.calibration import GEOMETRY_TARGETS as TARGETS
 from app.config import load_config
 from calibration.auto import rig_board
 from calibration.capture import CaptureWriter, open_capture
@@ -80,7 +80,9 @@ def test_rig_capture_solves_to_the_targets(sim_rig, tmp_path):
     assert view is not None and view.detection is not None  # the live view sees the board
     # the wizard's state saves each kept pose with this writer (its per-pose solve is tested elsewhere)
     writer = CaptureWriter(tmp_path / "cap", src.board, src.patterns)
-    for rvec, tvec in plan_poses(src.board, rig.calibration, 12, seed=5):
+    # 6 poses keep this test under a minute; the 12-pose form of the same capture is
+    # `slscan bench --calibration --calibration-rig 101 --calibration-poses 12 --calibration-seed 5`
+    for rvec, tvec in plan_poses(src.board, rig.calibration, 6, seed=5):
         rig.set_board_pose(rvec, tvec)  # the operator's hand
         take = src.capture()
         assert tags_true(src, take)
@@ -97,9 +99,16 @@ def test_rig_capture_solves_to_the_targets(sim_rig, tmp_path):
     assert [r.pattern for r in dump.frames] == list(range(len(src.patterns)))
     ids = [r.frame_id for r in dump.frames]
     assert ids == list(range(ids[0], ids[0] + len(ids)))
-    # colour levels through the devices: the rig's true mixing within 0.03
+
+
+@pytest.mark.slow
+def test_rig_colour_levels_then_the_gray_code_again(sim_rig):
+    """Colour levels filmed through the devices, then the Gray code is loaded again for the next pose."""
     from calibration.auto import fronto_pose
 
+    src, bench = sim_rig(seed=101)
+    rig = bench.rig
+    # colour levels through the devices: the rig's true mixing within 0.03
     rig.set_board_pose(*fronto_pose(src.board, rig))
     levels = src.levels()
     response = measure_response(levels, camera_gamma=float(rig.options.camera_gamma))
@@ -155,7 +164,7 @@ def test_without_a_trigger_the_patterns_are_stepped(sim_rig):
 
 def test_gray_code_pixel_check_catches_a_late_frame(board_rig):
     """One frame that saw its neighbour pattern (a late flip no counter saw) is refused by its pixels."""
-    from app.patterns import graycode_patterns
+    from core.patterns import graycode_patterns
 
     rig = board_rig("checkerboard", supersample=2)
     pats = graycode_patterns(rig.projector_size)

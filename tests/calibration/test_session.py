@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.patterns import graycode_patterns
 from calibration.board import Board
 from calibration.capture import PoseFrames
 from calibration.session import observe_pose
+from core.patterns import graycode_patterns
 
 
 def _meta(size=(1024, 768)):

@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.patterns import graycode_patterns
 from calibration.auto import fronto_pose, rig_board
 from calibration.capture import CaptureWriter, open_capture
 from calibration.poses import plan_poses
 from calibration.solve import MIN_POSES
 from calibration.wizard_state import WizardState, cells, overlay, tilt_direction
+from core.patterns import graycode_patterns
 
 
 def test_tilt_directions_and_cells():

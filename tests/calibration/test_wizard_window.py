@@ -9,7 +9,7 @@ import textwrap
 
 import pytest
 
-from calibration.model import Calibration
+from core.calibration import Calibration
 
 # both scripts end alike: Enter (verdict + validation scan), S (save), one drawn frame, then the label and pose
 # count the tests read
@@ -104,6 +104,8 @@ RIG_SCRIPT = textwrap.dedent(
 
     class Tee:
         # the pyglet projector window and the sim projector (what the simulated camera sees), in step
+        thread_bound = True
+
         def __init__(self, sim, window):
             self.sim, self.window, self.size = sim, window, window.size
             self.name = f"{window.name}+{sim.name}"

@@ -9,15 +9,15 @@ from __future__ import annotations
 import pytest
 
 from app.capture import CaptureLoop
-from app.commands.live import Session, build_session
-from app.pipeline import Processor
+from app.live_pipeline import LiveDecoder
+from app.session import Session, build_session
 from drivers.sim.devices import SimBench, SimDevices, devices_from_bench, parse_faults
 
 SMALL = {"camera_size": [320, 240]}
 
 
 @pytest.fixture(scope="session")
-def rig_session() -> tuple[Session, Processor]:
+def rig_session() -> tuple[Session, LiveDecoder]:
     session = build_session(None, sim_overrides=SMALL)
     return session, session.processor()
 

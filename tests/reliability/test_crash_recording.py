@@ -23,7 +23,7 @@ import yaml
 
 from app.cli import main
 from app.config import DEFAULT_CONFIG
-from app.dump import read_dump
+from core.dump import read_dump
 
 from .conftest import SMALL, fresh_devices
 
@@ -109,9 +109,9 @@ def test_kill_9_of_slscan_dump_at_random_points(small_config, tmp_path, rig_sess
 def test_disk_full_mid_session_stops_recording_and_the_session_goes_on(rig_session, tmp_path):
     """Frame files from the 10th on are the kernel's /dev/full (ENOSPC, as on a full disk): recording
     stops with a message and keeps its 10 frames; capture and decoding carry on."""
-    from app.dump import DumpWriter
-    from app.pipeline import LivePipeline
+    from app.live_pipeline import LivePipeline
     from app.recorder import Recorder
+    from core.dump import DumpWriter
 
     from .conftest import make_loop, mispaired
 

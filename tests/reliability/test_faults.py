@@ -21,9 +21,9 @@ import yaml
 
 from app.cli import main
 from app.config import DEFAULT_CONFIG
-from app.dump import DumpWriter, read_dump
-from app.pipeline import LivePipeline
+from app.live_pipeline import LivePipeline
 from app.recorder import Recorder
+from core.dump import DumpWriter, read_dump
 from drivers.trigger.emulator import TriggerBoxEmulator
 from drivers.trigger.serial_box import SerialTriggerBox
 

@@ -10,11 +10,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from app.dump import DumpWriter, read_dump
-from app.errors import InputError
-from app.pattern_export import read_patterns_meta, write_patterns
-from app.patterns import two_shot_patterns
-from calibration.model import Calibration
+from core.calibration import Calibration
+from core.dump import DumpWriter, read_dump
+from core.errors import InputError
+from core.pattern_export import read_patterns_meta, write_patterns
+from core.patterns import two_shot_patterns
 
 FUZZ = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 

@@ -7,7 +7,7 @@ import threading
 import time
 
 from app.bench.soak import open_fds
-from app.pipeline import LivePipeline
+from app.live_pipeline import LivePipeline
 
 from .conftest import fresh_devices, make_loop
 

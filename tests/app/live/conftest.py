@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.commands.live import build_session
+from app.session import build_session
 
 # 320x240 keeps the per-calibration precomputation short; the bench runs the full 640x480.
 SMALL = {"camera_size": [320, 240]}

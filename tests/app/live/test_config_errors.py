@@ -52,7 +52,7 @@ def test_config_error_is_one_line_naming_file_and_key(tmp_path, capsys, name, co
 
 
 def test_segmentation_from_the_config_reaches_the_decoder(tmp_path):
-    from app.commands.live import build_session
+    from app.session import build_session
 
     session = build_session(config_with(tmp_path, lambda d: d["scheme"].update(segmentation="both")))
     assert session.processor().decoder.params.segmentation == "both"
@@ -78,10 +78,10 @@ def test_rig_example_config_names_real_drivers_and_fails_on_the_missing_device(t
     """config/rig.example.yaml: every driver it names is registered; without hardware, one clear device error."""
     import shutil
 
-    from app.commands.live import build_session
     from app.config import CONFIG_DIR
-    from app.errors import DeviceError, InputError
-    from calibration.model import Calibration
+    from app.session import build_session
+    from core.calibration import Calibration
+    from core.errors import DeviceError, InputError
 
     rig = tmp_path / "rig.yaml"
     shutil.copy(CONFIG_DIR / "rig.example.yaml", rig)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 
-from app.imageio import read_float_tiff
+from core.imageio import read_float_tiff
 
 
 def test_live_without_display_runs_headless_and_saves_the_last_scan(run_cli, tmp_path):

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.commands.live import build_session
-from app.pipeline import LivePipeline
+from app.live_pipeline import LivePipeline
+from app.session import build_session
 
 from .conftest import SMALL, depth_agreement
 
@@ -50,7 +50,7 @@ def test_headless_live_run_matches_ground_truth(sim_session):
     assert fig["triangulate_ms_p50"] == 0.0 and fig["triangulated_in_decode"]
     wrong = processor.depth(processor.decode((f1, f0)))
     assert depth_agreement(wrong, gt)[0] < 0.5
-    assert coverage > 0.25, coverage  # coverage targets belong to the decoder (issue 4) and its bench
+    assert coverage > 0.25, coverage  # coverage targets belong to the decoder and its bench
     # each frame is tagged from the flip log: tags alternate with the trigger count
     assert pipe.capture.tagged + pipe.capture.refused == pipe.capture.frames
 
@@ -75,8 +75,8 @@ def test_injected_faults_are_counted_and_never_decoded_as_pairs(sim_session):
 
 
 def test_camera_that_disappears_stops_the_session_with_a_message(tmp_path):
-    from app.commands.live import open_recorder
-    from app.dump import read_dump
+    from app.session import open_recorder
+    from core.dump import read_dump
 
     session = build_session(None, sim_overrides={**SMALL, "faults": [{"kind": "disappear", "at": [15]}]})
     rec = open_recorder(session, tmp_path / "rec")
@@ -162,8 +162,8 @@ def test_trigger_reset_mid_session_resyncs_and_never_mispairs():
 def test_projector_window_closed_by_the_operator_stops_cleanly(tmp_path, sim_session):
     """A projector that reports stop_requested (pyglet: window closed, Esc or q in it) ends the
     session without an error; the recording is finalised."""
-    from app.commands.live import open_recorder
-    from app.dump import read_dump
+    from app.session import open_recorder
+    from core.dump import read_dump
 
     session = build_session(None, sim_overrides=SMALL)
     rec = open_recorder(session, tmp_path / "rec")

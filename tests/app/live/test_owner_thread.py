@@ -8,14 +8,15 @@ import time
 
 import pytest
 
-from app.errors import DeviceError, InputError
 from app.owner_thread import HandOver, OwnerThreadProjector, thread_bound
+from core.errors import DeviceError, InputError
 
 
 class WindowLike:
     """Records which thread ran each call, like a pyglet window that must stay on one thread."""
 
     name, size = "fake", (8, 6)
+    thread_bound = True
 
     def __init__(self) -> None:
         self.calls: list[tuple[str, object, int]] = []
@@ -63,7 +64,7 @@ def test_calls_from_another_thread_run_on_the_owner_in_order():
     assert proxy.served == 6
     proxy.load([1, 2])  # the owner's own call runs at once
     assert win.calls[-1] == ("load", 2, owner)
-    assert proxy.any_thread and thread_bound(win) and not thread_bound(proxy)
+    assert not proxy.thread_bound and thread_bound(win) and not thread_bound(proxy)
 
 
 def test_an_unserved_call_times_out_and_a_stopped_owner_refuses_or_ignores():
@@ -95,7 +96,8 @@ def test_an_unserved_call_times_out_and_a_stopped_owner_refuses_or_ignores():
 
 def test_hand_over_wraps_only_thread_bound_projectors():
     hand_over = HandOver()
-    plain = object()
+    plain = WindowLike()
+    plain.thread_bound = False  # e.g. the virtual rig's projector: any thread may call it
     assert hand_over(plain) is plain and hand_over.proxy is None
     win = WindowLike()
     wrapped = hand_over(win)

@@ -43,7 +43,7 @@ SCRIPT = textwrap.dedent(
     import numpy as np
     from Xlib import X, display as xdisplay
     from Xlib.protocol import event
-    from app.commands.live import build_session
+    from app.session import build_session
     from app.view import LiveView
     from drivers.projector.screens import import_pyglet
 
@@ -95,7 +95,7 @@ SCRIPT = textwrap.dedent(
         both = len({p for p, _, _ in grabs}) == 2
         if len(grabs) < 8 or (not both and len(grabs) < 40):
             # On the main thread no flip can happen during the grab: the screen holds the window's last flip.
-            pattern, flip_ns = view.projector.window.flips[-1]
+            pattern, flip_ns = view.projector.projector.window.flips[-1]  # proxy -> WatchedWindow -> window
             if grabs and grabs[-1][1] == flip_ns:
                 return  # one grab per flip
             raw = root.get_image(0, 0, 1024, 768, X.ZPixmap, 0xFFFFFFFF).data

@@ -15,13 +15,13 @@ import pytest
 import yaml
 
 from app.cli import main
-from app.commands.live import build_session, open_recorder
 from app.config import DEFAULT_CONFIG
-from app.dump import DumpWriter, read_dump, repair_dump
-from app.imageio import read_float_tiff
-from app.patterns import two_shot_patterns
-from app.pipeline import LivePipeline
+from app.live_pipeline import LivePipeline
 from app.recorder import Recorder
+from app.session import build_session, open_recorder
+from core.dump import DumpWriter, read_dump, repair_dump
+from core.imageio import read_float_tiff
+from core.patterns import two_shot_patterns
 from drivers.base import Frame
 
 from .conftest import SMALL, depth_agreement
@@ -121,8 +121,8 @@ def test_full_disk_stops_recording_and_keeps_what_was_written(tmp_path):
 RECORDER_SCRIPT = textwrap.dedent(
     """
     import sys, numpy as np
-    from app.dump import DumpWriter
-    from app.patterns import two_shot_patterns
+    from core.dump import DumpWriter
+    from core.patterns import two_shot_patterns
     from app.recorder import Recorder
     from drivers.base import Frame
     rec = Recorder(DumpWriter(sys.argv[1], two_shot_patterns((64, 48)), png_level=int(sys.argv[2])))

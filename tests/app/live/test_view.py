@@ -11,8 +11,8 @@ import textwrap
 import numpy as np
 import pytest
 
-from app.dump import read_dump
-from app.imageio import read_float_tiff, read_rgb
+from core.dump import read_dump
+from core.imageio import read_float_tiff, read_rgb
 
 pytestmark = pytest.mark.xserver
 
@@ -21,7 +21,7 @@ SCRIPT = textwrap.dedent(
     import argparse, time
     import numpy as np
     from Xlib import X, display as xdisplay
-    from app.commands.live import build_session
+    from app.session import build_session
     from app.pointview import _TURBO
     from app.view import LiveView
     from drivers.projector.screens import import_pyglet

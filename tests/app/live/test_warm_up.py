@@ -12,23 +12,23 @@ import time
 
 import numpy as np
 
-from app.commands.live import build_session
-from app.pipeline import Processor
+from app.live_pipeline import LiveDecoder
+from app.session import build_session
 
 from .conftest import SMALL
 
 
 def _record(monkeypatch, name: str, delay_s: float = 0.0) -> list:
-    """The arguments of every call of Processor.<name> (after delay_s, then the real method)."""
+    """The arguments of every call of LiveDecoder.<name> (after delay_s, then the real method)."""
     seen: list = []
-    real = getattr(Processor, name)
+    real = getattr(LiveDecoder, name)
 
     def spy(self, *args, **kw):
         seen.append((args, kw))
         time.sleep(delay_s)
         return real(self, *args, **kw)
 
-    monkeypatch.setattr(Processor, name, spy)
+    monkeypatch.setattr(LiveDecoder, name, spy)
     return seen
 
 
@@ -70,7 +70,7 @@ def test_the_announcement_names_the_scheme_on_stderr(capsys, sim_session):
 NOTHING_NEW = textwrap.dedent(
     """
     import sys, numba
-    from app.commands.live import build_session
+    from app.session import build_session
 
     def signatures():
         out = {}
@@ -108,7 +108,7 @@ def test_after_the_warm_up_the_first_frames_compile_nothing():
 def test_a_replay_warms_up_for_its_dumps_frames_and_survives_an_unreadable_first_frame(tmp_path):
     from app.cli import main
     from app.commands.replay import replay_session
-    from app.dump import read_dump
+    from core.dump import read_dump
 
     out = tmp_path / "d16"
     args = ["sim", "render", "--scene", "plane", "--scheme", "two-shot", "--camera-size", "160x120", "--ideal"]

@@ -7,8 +7,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from app.dump import DumpWriter
-from app.patterns import make_patterns
+from core.dump import DumpWriter
+from core.patterns import make_patterns
 
 FRAME_IDS = [100, 101, 102, 104, 105, 106]  # a gap (103): ids must come back as recorded
 STEP_NS = 50_000_000

@@ -245,7 +245,7 @@ def test_vanished_device_raises_promptly_and_can_be_reopened():
 
 
 def test_producers_are_released_when_the_last_camera_closes():
-    """harvesters: a second Harvester sees 0 devices while another holds the producer (FIELD-NOTES)."""
+    """harvesters: a second Harvester sees 0 devices while another holds the producer."""
     from harvesters.core import Harvester
 
     with viky(serial="0") as cam:

@@ -7,7 +7,7 @@ import pytest
 import yaml
 
 from app.cli import main
-from app.imageio import read_rgb
+from core.imageio import read_rgb
 from drivers.camera.gentl import HUB
 
 

@@ -9,7 +9,7 @@ import time
 import numpy as np
 import pytest
 
-from app.errors import DeviceError, InputError
+from core.errors import DeviceError, InputError
 from drivers.base import CAMERAS, Camera, CameraTimeoutError
 from drivers.camera.errors import CameraStoppedError, EndOfDumpError
 from drivers.camera.replay import ReplayCamera

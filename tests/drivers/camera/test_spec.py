@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from app.errors import InputError
+from core.errors import InputError
 from drivers.camera.spec import CameraSpec, as_bool, load_camera_drivers, open_camera, parse_camera_spec
 
 

@@ -1,4 +1,4 @@
-"""V4L2 driver against a mocked cv2.VideoCapture (no /dev/video* on these machines, FIELD-NOTES.md).
+"""V4L2 driver against a mocked cv2.VideoCapture (no /dev/video* on these machines).
 
 The fake behaves like a UVC camera behind OpenCV: set() may be ignored or approximated, so the
 driver must read every setting back; read() blocks for a frame period and returns BGR.

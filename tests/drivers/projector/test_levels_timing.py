@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.errors import InputError
+from core.errors import InputError
 from drivers.projector.levels import apply_levels, levels_lut
 from drivers.projector.timing import flip_stats
 

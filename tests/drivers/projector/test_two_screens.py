@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.patterns import make_patterns
+from core.patterns import make_patterns
 from drivers.projector import ProjectorSetupError, PygletProjector, list_screens, window
 
 pytestmark = pytest.mark.xserver

@@ -8,8 +8,8 @@ import threading
 import numpy as np
 import pytest
 
-from app.errors import DeviceError, InputError
-from app.patterns import make_patterns
+from core.errors import DeviceError, InputError
+from core.patterns import make_patterns
 from drivers.base import PROJECTORS, Projector
 from drivers.projector import PygletProjector
 from drivers.projector.levels import levels_lut

@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 
 from app.cli import main
-from app.dump import read_dump
-from app.imageio import read_float_tiff, read_rgb
-from app.patterns import two_shot_patterns
+from core.dump import read_dump
+from core.imageio import read_float_tiff, read_rgb
+from core.patterns import two_shot_patterns
 from drivers.sim.rig import VirtualRig
 
 

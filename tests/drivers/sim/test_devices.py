@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from app.config import load_config
-from app.errors import DeviceError, InputError
+from core.errors import DeviceError, InputError
 from drivers.base import CAMERAS, PROJECTORS, TRIGGERS, Camera, CameraTimeoutError, Projector, Trigger
 from drivers.sim.devices import SimDevices, devices_from_bench, make_bench, make_sim_rig
 

@@ -137,7 +137,7 @@ def test_bayer_sensor_keeps_flat_colours_and_blurs_one_pixel_stripes() -> None:
     r = rig(bayer=True)
     img = r.render(flat((200, 100, 30)))
     assert np.all(img[2:-2, 2:-2] == (200, 100, 30))
-    from app.patterns import two_shot_patterns
+    from core.patterns import two_shot_patterns
 
     stripes = two_shot_patterns((1024, 768)).images[0]
     plain = rig().render(stripes)

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from app.patterns import graycode_patterns, two_shot_patterns
+from core.patterns import graycode_patterns, two_shot_patterns
 from drivers.sim.rig import VirtualRig
 
 CRIT = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)

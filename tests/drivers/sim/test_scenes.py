@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from app.errors import InputError
+from core.errors import InputError
 from drivers.sim.optics import Geometry, project, undistort_normalized
 from drivers.sim.rig import VirtualRig
 from drivers.sim.scene import SceneError, list_presets, load_scene, parse_scene

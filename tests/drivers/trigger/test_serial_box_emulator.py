@@ -8,7 +8,7 @@ import time
 import pytest
 import serial
 
-from app.errors import DeviceError, InputError
+from core.errors import DeviceError, InputError
 from drivers.base import TRIGGERS, Trigger
 from drivers.trigger import protocol as proto
 from drivers.trigger.emulator import TriggerBoxEmulator

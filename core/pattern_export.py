@@ -1,4 +1,4 @@
-"""The pattern export format: PNGs plus `patterns.yaml` (see ARCHITECTURE.md, File formats)."""
+"""The pattern export format: PNGs plus `patterns.yaml` (docs/formats.md)."""
 
 from __future__ import annotations
 
@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from app.errors import InputError
-from app.imageio import read_rgb, write_rgb
-from app.patterns import CHANNEL_INDEX, PALETTE, SCHEMES, PatternSet, window_table
-from app.yamlfile import load_yaml_mapping
+from core.errors import InputError
+from core.imageio import read_rgb, write_rgb
+from core.patterns import CHANNEL_INDEX, PALETTE, SCHEMES, PatternSet, window_table
+from core.yamlfile import load_yaml_mapping
 
 FILENAME = "patterns.yaml"
 

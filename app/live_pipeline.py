@@ -4,7 +4,7 @@
       CaptureLoop.step()     full: drop the OLDEST set,     FrameSet -> StripeMap    view: newest only,
       recorder.put(frame)    counted as stale_sets          -> depth (triangulate)   older = stale_results
 
-Stale-data policy (ARCHITECTURE.md): the decoder works on the newest sets; a set that waited
+Stale-data policy: the decoder works on the newest sets; a set that waited
 while a newer one arrived is dropped and counted. The recorder is fed by the acquisition thread
 directly and never drops silently (app/recorder.py). Every stage is timed (ms) and the latency of
 each depth map is measured from the host arrival of its newest frame to the end of triangulation.
@@ -26,10 +26,10 @@ import numpy as np
 
 from app.capture import CaptureLoop, CaptureStats, FrameSet
 from app.decode.stripemap import StripeMap
-from app.errors import SlscanError
-from app.patterns import PatternSet
 from app.recorder import Recorder, lower_thread_priority
-from calibration.model import Calibration
+from core.calibration import Calibration
+from core.errors import SlscanError
+from core.patterns import PatternSet
 from drivers.base import Frame
 
 # Decode threads by default: the compiled kernels release the GIL, so two threads use two cores
@@ -40,8 +40,8 @@ WORKERS_HELP = f"decode threads (default {DECODE_WORKERS}: up to 2, as many as t
 # ------------------------------------------------------------------------------------ decode stage
 
 
-class Processor:
-    """FrameSet -> (StripeMap, depth): issue 4's FrameSetDecoder, built once. Decoding and triangulation are timed
+class LiveDecoder:
+    """FrameSet -> (StripeMap, depth): the scheme's FrameSetDecoder, built once. Decoding and triangulation are timed
     apart, except where the two-shot decoder triangulates row by row in its own pass (triangulates_in_decode)."""
 
     def __init__(
@@ -62,7 +62,9 @@ class Processor:
         self.decoder = self.frameset_decoder.decoder
         # (a mirrored rig's decoder leaves the depth map to a separate pass: TwoShotDecoder.decode_depth)
         self.triangulates_in_decode = (
-            self.scheme == "two-shot" and self.triangulator.moebius_geometry is not None and not self.decoder.mirrored
+            self.frameset_decoder.kind.depth_in_decode
+            and self.triangulator.moebius_geometry is not None
+            and not self.decoder.mirrored
         )
 
     def warm_up(
@@ -81,7 +83,7 @@ class Processor:
             timer.daemon = True
             timer.start()
         try:
-            if self.scheme == "graycode":
+            if not self.frameset_decoder.kind.compiled:  # numpy decoding: only the triangulation compiles
                 self.triangulator.depth(np.full((h, w), np.nan, np.float32))
             else:
                 blank = np.zeros((h, w, 3), dtype)
@@ -102,13 +104,9 @@ class Processor:
         depth = self.depth(stripes)
         return stripes, depth, (time.perf_counter() - t0) * 1e3
 
-    def decode(self, images: tuple[np.ndarray, ...], reversed_order: bool = False) -> StripeMap:
+    def decode(self, images: tuple[np.ndarray, ...]) -> StripeMap:
         """images[p] saw pattern p (the order in time does not matter to the decoders)."""
-        if self.scheme == "two-shot":
-            return self.decoder.decode(images[0], images[1])
-        if self.scheme == "one-shot":
-            return self.decoder.decode(images[0])
-        return self.decoder.decode(list(images))
+        return self.frameset_decoder.stripes(images)
 
     def depth(self, stripes: StripeMap) -> np.ndarray:
         return self.triangulator.depth(stripes.column)
@@ -118,7 +116,7 @@ class Processor:
 
 
 @dataclass
-class Result:
+class LiveResult:
     """One decoded frame set."""
 
     index: int  # sequence number of the set (in acquisition order)
@@ -182,20 +180,20 @@ class LivePipeline:
 
     make_loop: builds the CaptureLoop *on the acquisition thread* (a pyglet projector window must
     be used by the thread that opened it). max_frames: stop after that many camera frames.
-    on_result: called on a worker thread with every Result (keep it short: store, don't draw).
+    on_result: called on a worker thread with every LiveResult (keep it short: store, don't draw).
     processor None: no decoding (recording only).
     """
 
     def __init__(
         self,
         make_loop: Callable[[], CaptureLoop],
-        processor: Processor | None,
+        processor: LiveDecoder | None,
         *,
         workers: int = 1,
         queue_sets: int = 1,
         max_frames: int | None = None,
         recorder: Recorder | None = None,
-        on_result: Callable[[Result], None] | None = None,
+        on_result: Callable[[LiveResult], None] | None = None,
         on_frame: Callable[[Frame], None] | None = None,
     ) -> None:
         self.make_loop = make_loop
@@ -210,7 +208,7 @@ class LivePipeline:
         self.error: str | None = None  # why the session stopped early (device fault), for the operator
         self.stop_reason: str | None = None  # a clean early stop the operator asked for
         self.decode_error: str | None = None
-        self.latest: Result | None = None
+        self.latest: LiveResult | None = None
         self.latest_frame: Frame | None = None
         self._sets: deque[tuple[int, FrameSet]] = deque()
         self._queue_sets = max(1, queue_sets)
@@ -364,7 +362,7 @@ class LivePipeline:
                 self.stats.failed += 1
                 self.decode_error = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
                 continue
-            res = Result(index, fs, stripes, depth, (t1 - t0) * 1e3, (t2 - t1) * 1e3, time.monotonic_ns())
+            res = LiveResult(index, fs, stripes, depth, (t1 - t0) * 1e3, (t2 - t1) * 1e3, time.monotonic_ns())
             st = self.stats
             with self._lock:
                 st.decoded += 1
@@ -383,7 +381,7 @@ class LivePipeline:
             if self.on_result is not None:
                 self.on_result(res)
 
-    def take_latest(self) -> Result | None:
+    def take_latest(self) -> LiveResult | None:
         """The newest result not yet taken by a sink (the view calls this once per redraw)."""
         with self._lock:
             self._has_view = True
@@ -410,7 +408,7 @@ class LivePipeline:
             "triangulate_ms_p50": percentile(st.triangulate_ms, 50),
             "grab_ms_p50": percentile(st.grab_ms, 50),
             "dropped": cap.dropped,
-            "mispaired": cap.refused,
+            "refused": cap.refused,  # frames refused by the tag checks (never paired)
             "stale_sets": st.stale_sets,
             "stale_results": st.stale_results,
             "recorded": st.recorded,
@@ -426,6 +424,6 @@ def status_line(fig: dict, recording: str = "") -> str:
     lat_s = "-" if lat != lat else f"{lat:.0f} ms"
     return (
         f"{fig['frames_per_s']:5.1f} frames/s  {fig['depth_per_s']:5.1f} depth/s  latency p95 {lat_s}  "
-        f"dropped {fig['dropped']}  mispaired {fig['mispaired']}  stale {fig['stale_sets'] + fig['stale_results']}"
+        f"dropped {fig['dropped']}  refused {fig['refused']}  stale {fig['stale_sets'] + fig['stale_results']}"
         + (f"  {recording}" if recording else "")
     )

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import yaml
 
-from app.errors import InputError
+from core.errors import InputError
 
 
 def load_yaml(path: str | os.PathLike, error: type[InputError] = InputError) -> object:

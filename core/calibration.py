@@ -1,0 +1,243 @@
+"""The camera–projector calibration and its OpenCV FileStorage YAML (docs/formats.md).
+
+Geometry follows OpenCV: pinhole with (k1 k2 p1 p2 k3) distortion, millimetres, and
+X_projector = R · X_camera + T (as cv2.stereoCalibrate with the camera first).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+import yaml
+
+from core.errors import InputError
+
+RMS_KEYS = ("camera_rms", "projector_rms", "stereo_rms")
+
+
+@dataclass
+class Calibration:
+    camera_size: tuple[int, int]  # (w, h)
+    camera_matrix: np.ndarray  # 3x3
+    camera_distortion: np.ndarray  # (5,)
+    projector_size: tuple[int, int]
+    projector_matrix: np.ndarray
+    projector_distortion: np.ndarray
+    R: np.ndarray  # 3x3, camera -> projector
+    T: np.ndarray  # (3,), mm
+    rms: dict[str, float] = field(default_factory=dict)
+    # Linear camera R, G, B (rows) produced by projector R, G, B (columns); None if not measured.
+    color_mixing: np.ndarray | None = None
+    extra: dict[str, np.ndarray | float] = field(default_factory=dict)  # e.g. response curves
+
+    def __post_init__(self) -> None:
+        self.camera_size = (int(self.camera_size[0]), int(self.camera_size[1]))
+        self.projector_size = (int(self.projector_size[0]), int(self.projector_size[1]))
+        self.camera_matrix = np.asarray(self.camera_matrix, np.float64).reshape(3, 3)
+        self.projector_matrix = np.asarray(self.projector_matrix, np.float64).reshape(3, 3)
+        self.camera_distortion = _dist5(self.camera_distortion)
+        self.projector_distortion = _dist5(self.projector_distortion)
+        self.R = np.asarray(self.R, np.float64).reshape(3, 3)
+        self.T = np.asarray(self.T, np.float64).reshape(3)
+        if self.color_mixing is not None:
+            self.color_mixing = np.asarray(self.color_mixing, np.float64).reshape(3, 3)
+
+    @property
+    def baseline_mm(self) -> float:
+        return float(np.linalg.norm(self.T))
+
+    @property
+    def projector_center_in_camera(self) -> np.ndarray:
+        """Projector optical centre in camera coordinates: -R^T T."""
+        return -self.R.T @ self.T
+
+    def save(self, path: str | os.PathLike) -> None:
+        path = Path(path)
+        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+        if not fs.isOpened():
+            raise InputError(f"{path}: cannot write calibration (check the folder exists and is writable)")
+        try:
+            fs.write("camera_size", np.array(self.camera_size, np.int32).reshape(1, 2))
+            fs.write("camera_matrix", self.camera_matrix)
+            fs.write("camera_distortion", self.camera_distortion.reshape(1, 5))
+            fs.write("projector_size", np.array(self.projector_size, np.int32).reshape(1, 2))
+            fs.write("projector_matrix", self.projector_matrix)
+            fs.write("projector_distortion", self.projector_distortion.reshape(1, 5))
+            fs.write("R", self.R)
+            fs.write("T", self.T.reshape(3, 1))
+            for key, value in self.rms.items():
+                fs.write(key, float(value))
+            if self.color_mixing is not None:
+                fs.write("color_mixing", self.color_mixing)
+            for key, value in self.extra.items():
+                fs.write(key, np.asarray(value, np.float64) if not np.isscalar(value) else float(value))
+        finally:
+            fs.release()
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> Calibration:
+        path = Path(path)
+        if not path.is_file():
+            raise InputError(f"{path}: calibration file not found")
+        doc = read_filestorage_yaml(path)
+
+        def mat(key: str, shape: tuple[int, ...]) -> np.ndarray:
+            if key not in doc:
+                raise InputError(f"{path}: missing field '{key}'")
+            m = doc[key]
+            if not isinstance(m, np.ndarray):
+                raise InputError(f"{path}: field '{key}' is not a matrix")
+            if m.size != int(np.prod(shape)):
+                raise InputError(f"{path}: field '{key}' has {m.size} values, expected {int(np.prod(shape))}")
+            if not np.all(np.isfinite(m)):
+                raise InputError(f"{path}: field '{key}' has non-finite values")
+            return m.reshape(shape)
+
+        def size(key: str) -> tuple[int, int]:
+            v = mat(key, (2,))
+            if np.any(v < 1) or np.any(v > 1 << 16) or np.any(v != np.round(v)):
+                raise InputError(f"{path}: field '{key}' must be two positive integers [w, h]")
+            return int(v[0]), int(v[1])
+
+        rms = {}
+        for key in RMS_KEYS:
+            if key in doc:
+                value = _number(doc[key])
+                if value is None:
+                    raise InputError(f"{path}: field '{key}' must be a number")
+                rms[key] = value
+        mixing = mat("color_mixing", (3, 3)) if "color_mixing" in doc else None
+        cal = cls(
+            camera_size=size("camera_size"),
+            camera_matrix=mat("camera_matrix", (3, 3)),
+            camera_distortion=mat("camera_distortion", (5,)),
+            projector_size=size("projector_size"),
+            projector_matrix=mat("projector_matrix", (3, 3)),
+            projector_distortion=mat("projector_distortion", (5,)),
+            R=mat("R", (3, 3)),
+            T=mat("T", (3,)),
+            rms=rms,
+            color_mixing=mixing,
+            extra=_extra(doc),
+        )
+        cal.check(str(path))
+        return cal
+
+    def check(self, where: str = "calibration") -> None:
+        """Refuse values no real rig has (the error names the field)."""
+        for key in ("camera_matrix", "projector_matrix"):
+            K = getattr(self, key)
+            if K[0, 0] <= 0 or K[1, 1] <= 0 or abs(K[2, 2] - 1) > 1e-9:
+                raise InputError(f"{where}: field '{key}' is not a camera matrix (fx, fy > 0, K[2,2] = 1)")
+        if abs(np.linalg.det(self.R) - 1) > 1e-3 or not np.allclose(self.R @ self.R.T, np.eye(3), atol=1e-3):
+            raise InputError(f"{where}: field 'R' is not a rotation matrix")
+        if self.baseline_mm <= 0:
+            raise InputError(f"{where}: field 'T' is zero: camera and projector cannot share a centre")
+        if self.color_mixing is not None and abs(np.linalg.det(self.color_mixing)) < 1e-9:
+            raise InputError(f"{where}: field 'color_mixing' is singular and cannot be inverted")
+
+    def check_camera_size(self, width: int, height: int, where: str) -> None:
+        if (width, height) != self.camera_size:
+            raise InputError(
+                f"{where}: frames are {width}x{height} but the calibration's camera_size is "
+                f"{self.camera_size[0]}x{self.camera_size[1]}"
+            )
+
+
+KNOWN_KEYS = {
+    "camera_size", "camera_matrix", "camera_distortion", "projector_size", "projector_matrix",
+    "projector_distortion", "R", "T", "color_mixing", *RMS_KEYS,
+}  # fmt: skip
+
+
+def _number(value: object) -> float | None:
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, int | float):
+        return float(value)
+    if isinstance(value, str):  # PyYAML leaves e.g. "1e-05" (no dot) as a string
+        try:
+            return float(value)
+        except ValueError:
+            return None
+    return None
+
+
+def _extra(doc: dict) -> dict[str, np.ndarray | float]:
+    """Every other top-level number or matrix (e.g. camera_gamma, response curves) into `extra`."""
+    extra: dict[str, np.ndarray | float] = {}
+    for key, value in doc.items():
+        if key in KNOWN_KEYS:
+            continue
+        if isinstance(value, np.ndarray):
+            if np.all(np.isfinite(value)):
+                extra[key] = value
+        elif (number := _number(value)) is not None:
+            extra[key] = number
+    return extra
+
+
+class _BadMatrixError(ValueError):
+    pass
+
+
+class _FileStorageLoader(yaml.SafeLoader):
+    """PyYAML's safe loader plus OpenCV's `!!opencv-matrix` tag (rows, cols, dt, data)."""
+
+
+def _construct_matrix(loader: yaml.SafeLoader, node: yaml.Node) -> np.ndarray:
+    if not isinstance(node, yaml.MappingNode):
+        raise _BadMatrixError("an opencv-matrix must be a mapping")
+    m = loader.construct_mapping(node, deep=True)
+    rows, cols, data = m.get("rows"), m.get("cols"), m.get("data")
+    if not (isinstance(rows, int) and isinstance(cols, int) and 0 < rows <= 4096 and 0 < cols <= 4096):
+        raise _BadMatrixError("an opencv-matrix needs positive integer rows and cols")
+    if not isinstance(data, list) or len(data) != rows * cols:
+        raise _BadMatrixError(f"an opencv-matrix of {rows}x{cols} needs {rows * cols} data values")
+    values = [_number(v) for v in data]
+    if any(v is None for v in values):
+        raise _BadMatrixError("an opencv-matrix has a value that is not a number")
+    return np.array(values, np.float64).reshape(rows, cols)
+
+
+_FileStorageLoader.add_constructor("tag:yaml.org,2002:opencv-matrix", _construct_matrix)
+
+
+def read_filestorage_yaml(path: Path) -> dict:
+    """Read an OpenCV FileStorage YAML file in Python.
+
+    OpenCV's own parser aborts the whole process (heap corruption) on some malformed files, so a
+    calibration written by cv2.FileStorage is read back with PyYAML's safe loader instead.
+    """
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except (OSError, UnicodeDecodeError):
+        raise InputError(f"{path}: not a text (OpenCV FileStorage YAML) calibration file") from None
+    lines = text.splitlines()
+    if lines and lines[0].startswith("%YAML"):  # OpenCV writes "%YAML:1.0" or "%YAML 1.2"
+        lines = lines[1:]
+    try:
+        loader = _FileStorageLoader("\n".join(lines))
+        try:
+            doc = loader.get_single_data()
+        finally:
+            loader.dispose()
+    except _BadMatrixError as exc:
+        raise InputError(f"{path}: {exc}") from None
+    except (yaml.YAMLError, ValueError, TypeError, RecursionError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"{path}: not an OpenCV FileStorage YAML calibration ({first})") from None
+    if not isinstance(doc, dict):
+        raise InputError(f"{path}: not an OpenCV FileStorage YAML calibration (expected a mapping)")
+    return doc
+
+
+def _dist5(d: np.ndarray) -> np.ndarray:
+    d = np.asarray(d, np.float64).ravel()
+    if d.size > 5:
+        raise ValueError("distortion has more than 5 coefficients (k1 k2 p1 p2 k3 expected)")
+    return np.concatenate([d, np.zeros(5 - d.size)])

@@ -1,0 +1,322 @@
+"""Frame dumps, format `slscan-dump` version 1 (docs/formats.md).
+
+The writer is crash-safe by construction: a frame's PNG is written under a temporary name and
+renamed into place, and only then is its one-line entry appended to `dump.yaml`, whose `frames:`
+list is the last key. After a kill the file ends, at worst, in a half-written line that the
+reader drops, so a dump is always readable up to its last complete frame.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import yaml
+
+from core.calibration import Calibration
+from core.errors import InputError
+from core.imageio import encode_png, read_rgb
+from core.pattern_export import read_patterns, read_patterns_meta, write_patterns
+from core.patterns import PatternSet
+
+FORMAT = "slscan-dump"
+VERSION = 1
+INDEX = "dump.yaml"
+
+# PNG settings by level, measured on a 640x480 stripe frame with sensor noise (one core, this machine):
+#   0: stored, no filter       ~1 ms/frame, 900 KB  (the live default: keeps up at 60 Hz with room)
+#   1: Huffman-only, Up filter ~11 ms/frame, 470 KB (half the disk, ~2/3 of a core at 60 Hz)
+#   OpenCV's default (zlib level 1, adaptive filters) took ~21 ms/frame, 550 KB: too slow for 60 Hz.
+PNG_LEVELS: dict[int, tuple[int, ...]] = {
+    0: (cv2.IMWRITE_PNG_COMPRESSION, 0, cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_NONE),
+    1: (
+        cv2.IMWRITE_PNG_COMPRESSION,
+        1,
+        cv2.IMWRITE_PNG_STRATEGY,
+        cv2.IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY,
+        cv2.IMWRITE_PNG_FILTER,
+        cv2.IMWRITE_PNG_FILTER_UP,
+    ),
+    **{lvl: (cv2.IMWRITE_PNG_COMPRESSION, lvl) for lvl in range(2, 10)},
+}
+
+
+class DumpWriteError(InputError):
+    """Writing a frame failed (disk full, folder removed): frames written before it stay readable."""
+
+    def __init__(self, message: str, errno_: int | None = None) -> None:
+        super().__init__(message)
+        self.errno = errno_
+
+    @property
+    def disk_full(self) -> bool:
+        return self.errno in (errno.ENOSPC, errno.EDQUOT)
+
+
+@dataclass(frozen=True)
+class FrameRecord:
+    file: str  # relative to the dump folder
+    pattern: int  # index into the pattern set's images
+    frame_id: int
+    timestamp_ns: int
+
+
+class DumpWriter:
+    """Append tagged camera frames to a new dump folder (refuses to overwrite one)."""
+
+    def __init__(
+        self,
+        folder: str | os.PathLike,
+        patterns: PatternSet,
+        calibration: Calibration | None = None,
+        depth_range_mm: tuple[float, float] | None = None,
+        extra: dict | None = None,
+        png_level: int = 1,
+        pattern_files: dict[str, bytes] | None = None,
+    ) -> None:
+        """pattern_files: the files of `patterns`' export, already encoded (the poses of a calibration
+        capture share one pattern set: encoding its PNGs again for every pose cost ~2 s a pose)."""
+        if png_level not in PNG_LEVELS:
+            raise InputError(f"PNG compression level {png_level} must be 0..9")
+        self._png = PNG_LEVELS[png_level]
+        self.folder = Path(folder)
+        if self.folder.exists() and (not self.folder.is_dir() or any(self.folder.iterdir())):
+            raise InputError(f"{self.folder}: already exists; a dump is never overwritten (choose another --out)")
+        try:
+            (self.folder / "frames").mkdir(parents=True, exist_ok=True)
+            (self.folder / "patterns").mkdir()
+        except OSError as exc:
+            raise InputError(f"{self.folder}: cannot create the dump folder ({exc.strerror})") from None
+        self.n_patterns = len(patterns)
+        if pattern_files is None:
+            write_patterns(patterns, self.folder / "patterns")
+        else:
+            for name, data in pattern_files.items():
+                (self.folder / "patterns" / name).write_bytes(data)
+        header: dict = {"format": FORMAT, "version": VERSION, "scheme": patterns.scheme, "patterns": "patterns"}
+        if calibration is not None:
+            calibration.save(self.folder / "calibration.yaml")
+            header["calibration"] = "calibration.yaml"
+        if depth_range_mm is not None:
+            header["depth_range_mm"] = [float(depth_range_mm[0]), float(depth_range_mm[1])]
+        header.update(extra or {})
+        self._index = open(self.folder / INDEX, "w", encoding="utf-8")  # kept open: one line appended per frame
+        self._index.write(yaml.safe_dump(header, sort_keys=False) + "frames:\n")
+        self._index.flush()
+        self.count = 0
+        self._last_ts: int | None = None
+
+    def add(self, image: np.ndarray, pattern: int, frame_id: int, timestamp_ns: int) -> FrameRecord:
+        if not 0 <= pattern < self.n_patterns:
+            raise ValueError(f"pattern index {pattern} outside 0..{self.n_patterns - 1}")
+        if self._last_ts is not None and timestamp_ns < self._last_ts:
+            raise ValueError(f"timestamp {timestamp_ns} ns goes back in time (last {self._last_ts} ns)")
+        rel = f"frames/{self.count:06d}.png"
+        tmp = self.folder / f"frames/{self.count:06d}.tmp.png"
+        data = encode_png(image, self._png)
+        record = FrameRecord(rel, int(pattern), int(frame_id), int(timestamp_ns))
+        line = (
+            f"- {{file: {rel}, pattern: {record.pattern}, frame_id: {record.frame_id}, "
+            f"timestamp_ns: {record.timestamp_ns}}}\n"
+        )
+        try:
+            _write_file(tmp, data)
+            os.replace(tmp, self.folder / rel)
+            # The entry goes in only once its frame is complete under its final name.
+            self._index.write(line)
+            self._index.flush()
+        except OSError as exc:
+            _unlink_quietly(tmp)
+            what = "disk full" if exc.errno in (errno.ENOSPC, errno.EDQUOT) else exc.strerror
+            raise DumpWriteError(
+                f"{self.folder}: cannot write frame {self.count} ({what}); the {self.count} frames before it are kept",
+                exc.errno,
+            ) from None
+        self.count += 1
+        self._last_ts = record.timestamp_ns
+        return record
+
+    def close(self) -> None:
+        if not self._index.closed:
+            try:
+                self._index.flush()
+                os.fsync(self._index.fileno())
+            except OSError:
+                pass  # disk full: what reached the file is all there is; the reader copes with a short tail
+            finally:
+                try:
+                    self._index.close()
+                except OSError:
+                    pass
+
+    def __enter__(self) -> DumpWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+@dataclass
+class Dump:
+    folder: Path
+    meta: dict
+    frames: list[FrameRecord]
+    dropped_tail: int = 0  # entries after the last complete frame (a writer that was killed)
+
+    @property
+    def scheme(self) -> str:
+        return self.meta["scheme"]
+
+    @property
+    def patterns_folder(self) -> Path:
+        return self.folder / self.meta["patterns"]
+
+    def patterns_meta(self) -> dict:
+        return read_patterns_meta(self.patterns_folder)
+
+    def patterns(self) -> PatternSet:
+        return read_patterns(self.patterns_folder)
+
+    def calibration(self) -> Calibration | None:
+        rel = self.meta.get("calibration")
+        return None if rel is None else Calibration.load(_inside(self.folder, rel, "calibration"))
+
+    def depth_range_mm(self) -> tuple[float, float] | None:
+        r = self.meta.get("depth_range_mm")
+        return None if r is None else (float(r[0]), float(r[1]))
+
+    def load_frame(self, i: int) -> np.ndarray:
+        return read_rgb(self.folder / self.frames[i].file)
+
+
+def read_dump(folder: str | os.PathLike) -> Dump:
+    """Read `dump.yaml`, tolerating a half-written last line; check every path stays inside."""
+    folder = Path(folder)
+    path = folder / INDEX
+    if not path.is_file():
+        raise InputError(f"{path}: not found ({folder} is not a frame dump)")
+    text = path.read_bytes().decode("utf-8", errors="replace")
+    if not text.endswith("\n"):
+        text = text[: text.rfind("\n") + 1]  # a writer killed mid-line
+    try:
+        meta = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise InputError(f"{path}: not valid YAML ({str(exc).splitlines()[0]})") from None
+    if not isinstance(meta, dict):
+        raise InputError(f"{path}: expected a mapping at the top level")
+    if meta.get("format") != FORMAT:
+        raise InputError(f"{path}: field 'format' is {meta.get('format')!r}, expected {FORMAT!r}")
+    if meta.get("version") != VERSION:
+        raise InputError(f"{path}: field 'version' is {meta.get('version')!r}, this slscan reads version {VERSION}")
+    for key in ("scheme", "patterns"):
+        if key not in meta:
+            raise InputError(f"{path}: missing field '{key}'")
+    _inside(folder, meta["patterns"], "patterns")
+    if "calibration" in meta:
+        _inside(folder, meta["calibration"], "calibration")
+    rng = meta.get("depth_range_mm")
+    if rng is not None and not (
+        isinstance(rng, list) and len(rng) == 2 and all(isinstance(v, int | float) for v in rng) and 0 < rng[0] < rng[1]
+    ):
+        raise InputError(f"{path}: field 'depth_range_mm' must be [near, far] with 0 < near < far")
+    raw = meta.get("frames") or []
+    if not isinstance(raw, list):
+        raise InputError(f"{path}: field 'frames' must be a list")
+    frames: list[FrameRecord] = []
+    for i, entry in enumerate(raw):
+        try:
+            rec = FrameRecord(
+                str(entry["file"]), int(entry["pattern"]), int(entry["frame_id"]), int(entry["timestamp_ns"])
+            )
+        except (TypeError, KeyError, ValueError):
+            raise InputError(f"{path}: frames[{i}] needs file, pattern, frame_id and timestamp_ns") from None
+        _inside(folder, rec.file, f"frames[{i}].file")
+        if rec.pattern < 0:
+            raise InputError(f"{path}: frames[{i}].pattern is negative")
+        frames.append(rec)
+    # A frame whose file is missing ends the readable part only if nothing after it exists.
+    dropped = 0
+    while frames and not (folder / frames[-1].file).is_file():
+        frames.pop()
+        dropped += 1
+    for i, rec in enumerate(frames):
+        if not (folder / rec.file).is_file():
+            raise InputError(f"{folder / rec.file}: frame file listed in {path} (frames[{i}]) is missing")
+    meta["frames"] = None
+    return Dump(folder, meta, frames, dropped)
+
+
+def _inside(folder: Path, rel: object, field_name: str) -> Path:
+    if not isinstance(rel, str) or not rel:
+        raise InputError(f"{folder / INDEX}: field '{field_name}' must be a relative path")
+    p = Path(rel)
+    if p.is_absolute() or ".." in p.parts:
+        raise InputError(f"{folder / INDEX}: field '{field_name}' = {rel!r} leaves the dump folder")
+    return folder / p
+
+
+def _write_file(path: Path, data: bytes) -> None:
+    """Write bytes with os.write, so a full disk raises OSError(ENOSPC) here (cv2.imwrite only says False)."""
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+    try:
+        view = memoryview(data)
+        while view:
+            n = os.write(fd, view)
+            view = view[n:]
+    finally:
+        os.close(fd)
+
+
+def _unlink_quietly(path: Path) -> None:
+    try:
+        path.unlink()
+    except OSError:
+        pass
+
+
+@dataclass(frozen=True)
+class RepairReport:
+    frames: int  # frames the repaired index lists
+    dropped_entries: int  # index entries removed (half-written line, frame file missing)
+    removed_partial: int  # *.tmp.png files of a frame that was being written
+    unindexed: int  # complete frame files with no index entry (killed between rename and append): removed
+
+    def summary(self) -> str:
+        return (
+            f"{self.frames} frames readable; removed {self.dropped_entries} broken index entr"
+            f"{'y' if self.dropped_entries == 1 else 'ies'}, {self.removed_partial} partial and "
+            f"{self.unindexed} unindexed frame file(s)"
+        )
+
+
+def repair_dump(folder: str | os.PathLike) -> RepairReport:
+    """Make a dump whose writer was killed clean: index = its readable frames, no stray files.
+
+    The reader already reads such a dump up to its last complete frame; repairing rewrites
+    `dump.yaml` atomically (complete lines, closing newline) and removes the leftovers.
+    """
+    folder = Path(folder)
+    dump = read_dump(folder)
+    path = folder / INDEX
+    text = path.read_bytes().decode("utf-8", errors="replace")
+    n_lines = sum(1 for ln in text.splitlines() if ln.startswith("- {file:"))
+    head = text[: text.index("\nframes:") + 1] if "\nframes:" in text else text
+    lines = [
+        f"- {{file: {r.file}, pattern: {r.pattern}, frame_id: {r.frame_id}, timestamp_ns: {r.timestamp_ns}}}\n"
+        for r in dump.frames
+    ]
+    tmp = folder / (INDEX + ".repair")
+    _write_file(tmp, (head + "frames:\n" + "".join(lines)).encode())
+    os.replace(tmp, path)
+    partial = list((folder / "frames").glob("*.tmp.png"))
+    for p in partial:
+        _unlink_quietly(p)
+    listed = {(folder / r.file).resolve() for r in dump.frames}
+    unindexed = [p for p in (folder / "frames").glob("*.png") if p.resolve() not in listed]
+    for p in unindexed:
+        _unlink_quietly(p)
+    return RepairReport(len(dump.frames), n_lines - len(dump.frames), len(partial), len(unindexed))
