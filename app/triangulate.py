@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 from numba import njit
 
-import app.jit  # noqa: F401  (numba's vector width, before anything compiles)
+import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
 from app.errors import InputError
 from calibration.model import Calibration
 
@@ -217,9 +217,6 @@ class Triangulator:
     def column_range(self) -> tuple[np.ndarray, np.ndarray]:
         """Per pixel, the projector columns that fall inside the depth range."""
         return self.column_lo, self.column_hi
-
-    def check_size(self, width: int, height: int, where: str) -> None:
-        self.calibration.check_camera_size(width, height, where)
 
     @property
     def moebius_geometry(self) -> tuple[np.ndarray, float, float] | None:

@@ -11,7 +11,7 @@ import numpy as np
 from numba import njit, types
 from numba.extending import overload
 
-import app.jit  # noqa: F401  (numba's vector width, before anything compiles)
+import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
 from app.decode.simd import (
     GATHER_LANES,
     LANES,

@@ -22,7 +22,7 @@ AVX-512 — and for a generic x86-64). What they gain: docs/performance.md.
 
 The calls are written in LLVM's four-argument form (pointers, alignment, mask, pass-through); LLVM 22 drops the
 alignment operand and upgrades such calls itself. numba's cache is keyed by the sources of every module that uses
-numba (app/jit.py), so edits here reach the kernels that inline these intrinsics.
+numba (core/jit.py), so edits here reach the kernels that inline these intrinsics.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-import app.jit  # noqa: F401  (numba's vector width, before anything compiles)
+import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
 
 LANES = 16  # pixels per differences16 call
 _LLVM_NAME = {types.float32: "f32", types.float64: "f64", types.int32: "i32", types.int64: "i64"}

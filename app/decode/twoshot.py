@@ -165,23 +165,19 @@ class TwoShotDecoder:
         )
         return code, feat, noise
 
-    def decode(self, frame1: np.ndarray, frame2: np.ndarray, reversed_order: bool = False) -> StripeMap:
-        """frame1 saw pattern 0 and frame2 pattern 1; reversed_order=True if they are given the other way."""
-        if reversed_order:
-            frame1, frame2 = frame2, frame1
+    def decode(self, frame1: np.ndarray, frame2: np.ndarray) -> StripeMap:
+        """frame1 saw pattern 0 and frame2 pattern 1 (in pattern order, whichever came first in time)."""
         if self.mirrored:
             return mirror_back(self._decode(mirror_image(frame1), mirror_image(frame2))[0])
         return self._decode(frame1, frame2)[0]
 
     def decode_depth(
-        self, frame1: np.ndarray, frame2: np.ndarray, geometry: MoebiusGeometry, reversed_order: bool = False
+        self, frame1: np.ndarray, frame2: np.ndarray, geometry: MoebiusGeometry
     ) -> tuple[StripeMap, np.ndarray | None]:
         """decode(), and the depth map (float32 mm, 0 = none) from a triangulator's closed-form geometry
         (Triangulator.moebius_geometry) in the same pass: each row is triangulated as soon as its columns are
         final, while it is in cache; the same depths as Triangulator.depth of the stripe map. None for a rig
         decoded mirrored (the caller triangulates the stripe map)."""
-        if reversed_order:
-            frame1, frame2 = frame2, frame1
         if self.mirrored:
             return mirror_back(self._decode(mirror_image(frame1), mirror_image(frame2))[0]), None
         return self._decode(frame1, frame2, geometry)

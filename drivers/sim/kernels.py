@@ -11,7 +11,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-import app.jit  # noqa: F401  (numba's vector width, before anything compiles)
+import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
 
 
 @numba.njit(cache=True, nogil=True)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-import app.jit  # noqa: F401  (numba's vector width, before anything compiles)
+import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
 from app.decode.fast.bundles import LabelScratch, LabelSettings, Runs
 from app.decode.fast.lookup import wrap
 from app.decode.primitives import append_where, gather

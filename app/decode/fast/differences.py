@@ -12,7 +12,7 @@ import numpy as np
 from numba import njit, types
 from numba.extending import overload
 
-import app.jit  # noqa: F401  (numba's vector width, before anything compiles)
+import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
 from app.decode.primitives import JIT, c_array
 from app.decode.simd import LANES, differences16, differences16_pairs, differences16_takes, prefetch_at
 

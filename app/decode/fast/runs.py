@@ -12,7 +12,7 @@ import numpy as np
 from numba import njit, types
 from numba.extending import overload
 
-import app.jit  # noqa: F401  (numba's vector width, before anything compiles)
+import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
 from app.decode.fast.bundles import EventScratch, LinkScratch, Runs, Transitions
 from app.decode.primitives import JIT, append_where, c_array, gather, run_bounds
 

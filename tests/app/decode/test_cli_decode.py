@@ -1,4 +1,4 @@
-"""`slscan decode` on dumps written with the virtual rig, and the bad inputs of issue 4."""
+"""`slscan decode` on dumps written with the virtual rig, and its one-line errors on bad inputs."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""app.jit: numba's CPU target gets 512-bit vectors on AVX-512 hosts, unless the user set numba's CPU options
+"""core.jit: numba's CPU target gets 512-bit vectors on AVX-512 hosts, unless the user set numba's CPU options
 or SLSCAN_WIDE_VECTORS=0."""
 
 import os
@@ -51,7 +51,7 @@ def test_numba_cpu_features_set_by_the_user_win():
 CACHE_PROBE = """
 import numpy as np
 from numba.core import config
-import app.jit
+import core.jit
 from app.triangulate import Triangulator  # noqa: F401  (a module of cached kernels)
 from app.decode.pipeline import average_frames_of
 a = np.zeros((4, 4, 3), np.uint8)
@@ -61,7 +61,7 @@ print(config.CACHE_DIR)
 
 
 def test_numba_caches_into_a_folder_keyed_by_the_sources(tmp_path):
-    from app import jit
+    from core import jit
 
     env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
     run = subprocess.run(
@@ -75,7 +75,7 @@ def test_numba_caches_into_a_folder_keyed_by_the_sources(tmp_path):
 
 
 def test_an_edit_of_any_file_that_uses_numba_moves_the_cache(tmp_path):
-    from app import jit
+    from core import jit
 
     (tmp_path / "app" / "decode").mkdir(parents=True)
     helper = tmp_path / "app" / "decode" / "helper.py"
@@ -91,7 +91,7 @@ def test_an_edit_of_any_file_that_uses_numba_moves_the_cache(tmp_path):
 
 
 def test_a_too_old_compiler_is_refused_in_one_line_naming_the_versions():
-    from app import jit
+    from core import jit
 
     jit.check_compiler("0.62.0", "0.45.0", 20)
     for old in (("0.61.2", "0.44.0", 15), ("0.62.0", "0.44.0", 15), ("0.68.1", "0.50.0", 19)):

@@ -1,7 +1,7 @@
 """numba's code generation, set once for the whole application before anything is compiled.
 
 Import this module before numba compiles or loads anything (every module with compiled kernels does:
-`import app.jit  # noqa: F401`).
+`import core.jit  # noqa: F401`).
 
 LLVM gives Intel's AVX-512 server models (Skylake-X onwards) the tuning flag `prefer-256-bit`, so its loop
 vectoriser stops at 256-bit vectors on them even though every instruction exists at 512 bits (a choice made
@@ -35,7 +35,7 @@ import time
 from importlib import metadata
 from pathlib import Path
 
-from app.errors import SlscanError
+from core.errors import SlscanError
 
 NUMBA_FLOOR = (0, 62)
 LLVMLITE_FLOOR = (0, 45)
