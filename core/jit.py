@@ -46,6 +46,23 @@ STALE_CACHE_S = 7 * 24 * 3600
 WIDE_VECTORS = "-prefer-256-bit"  # appended to the host's features where it has AVX-512
 
 
+def host_features() -> frozenset[str]:
+    """The features of the CPU this runs on, as LLVM names them (without the '+')."""
+    from numba.core import codegen
+
+    return frozenset(f[1:] for f in codegen.get_host_cpu_features().split(",") if f.startswith("+"))
+
+
+def target_features() -> frozenset[str]:
+    """The features numba compiles for: its CPU_FEATURES setting where there is one (the user's, or
+    use_wide_vectors'), else the host's; without the '+'."""
+    from numba.core import config
+
+    if config.CPU_FEATURES is None:
+        return host_features()
+    return frozenset(f[1:] for f in config.CPU_FEATURES.split(",") if f.startswith("+"))
+
+
 def use_wide_vectors() -> bool:
     """Let LLVM vectorise with 512-bit vectors on AVX-512 CPUs (see above); whether it was set."""
     if os.environ.get("SLSCAN_WIDE_VECTORS", "1") == "0":
@@ -58,10 +75,9 @@ def use_wide_vectors() -> bool:
         return config.CPU_FEATURES is not None and WIDE_VECTORS in config.CPU_FEATURES
     if "_toplevel_target_context" in registry.cpu_target.__dict__:
         return False  # numba's CPU target exists already: too late, it keeps LLVM's choice
-    features = codegen.get_host_cpu_features()
-    if "+avx512f" not in features.split(","):
+    if "avx512f" not in host_features():
         return False
-    config.CPU_FEATURES = f"{features},{WIDE_VECTORS}"
+    config.CPU_FEATURES = f"{codegen.get_host_cpu_features()},{WIDE_VECTORS}"
     return True
 
 

@@ -35,6 +35,7 @@ TARGETS_MS = {"640x480": 3.0, "1280x1024": 10.0}  # two-shot decode + triangulat
 MAX_RATIO = 10.0  # x the numpy pass, at the sizes whose frames do not fit in cache
 RATIO_SIZES = ("1280x1024", "1920x1080")
 TARGETS = ("native", "avx2")
+DEFAULT_SIZES = ",".join(f"{w}x{h}" for w, h in RESOLUTIONS)
 
 # LLVM's Haswell features: AVX2, FMA, BMI2 and no AVX-512 (the CPU name alone would keep the host's features)
 AVX2_FEATURES = (
@@ -53,7 +54,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--speed-sizes",
-        default=",".join(f"{w}x{h}" for w, h in RESOLUTIONS),
+        default=DEFAULT_SIZES,
         metavar="LIST",
         help="camera sizes WxH to time, comma-separated (speed)",
     )
@@ -131,12 +132,6 @@ def measure(schemes: list[str], repeats: int, target: str, sizes: list | None = 
     return rows
 
 
-def _host_has_avx2() -> bool:
-    from numba.core import codegen
-
-    return "+avx2" in codegen.get_host_cpu_features().split(",")
-
-
 def _measure_avx2(schemes: list[str], repeats: int, sizes: list) -> list[dict]:
     """measure() in a subprocess whose numba compiles for AVX2_ENV (numba reads its CPU target once)."""
     code = "import json, sys; from app.bench.speed import measure; print(json.dumps(measure(*json.loads(sys.argv[1]))))"
@@ -160,10 +155,12 @@ def run(args: argparse.Namespace) -> list[dict]:
     for t in targets:
         if t not in TARGETS:
             raise InputError(f"--speed-targets: unknown target {t!r} (choose {', '.join(TARGETS)})")
-    sizes = parse_sizes(getattr(args, "speed_sizes", ",".join(f"{w}x{h}" for w, h in RESOLUTIONS)))
+    sizes = parse_sizes(getattr(args, "speed_sizes", DEFAULT_SIZES))
     rows = measure(schemes, repeats, "native", sizes) if "native" in targets else []
     if "avx2" in targets:
-        if not _host_has_avx2():
+        from core.jit import host_features
+
+        if "avx2" not in host_features():
             print("bench --speed: this CPU has no AVX2: the avx2 rows are left out", file=sys.stderr)
         else:
             rows += _measure_avx2(schemes, repeats, [list(s) for s in sizes])

@@ -32,7 +32,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
+from core.jit import target_features  # (also sets numba's vector width, before anything compiles)
 
 LANES = 16  # pixels per differences16 call
 _LLVM_NAME = {types.float32: "f32", types.float64: "f64", types.int32: "i32", types.int64: "i64"}
@@ -82,17 +82,9 @@ def _masked_gather(builder: ir.IRBuilder, base: ir.Value, index: ir.Value, value
     return builder.call(fn, [gep, align, ir.Constant(vmask, [1] * lanes), ir.Constant(vval, ir.Undefined)])
 
 
-def _target_features() -> frozenset[str]:
-    """The CPU features numba compiles for (its CPU_FEATURES setting, else the host's), without the '+'."""
-    from numba.core import codegen, config
-
-    f = config.CPU_FEATURES if config.CPU_FEATURES is not None else codegen.get_host_cpu_features()
-    return frozenset(x[1:] for x in f.split(",") if x.startswith("+"))
-
-
 def compress_by_permute() -> bool:
     """Whether appends use AVX2's variable permute with a table of lane orders: an AVX2 target without AVX-512."""
-    f = _target_features()
+    f = target_features()
     return "avx2" in f and "avx512f" not in f
 
 
