@@ -108,6 +108,8 @@ class FrameSet:
     frames: tuple[Frame, ...]
     reversed_order: bool = False  # two-shot: the pattern-1 frame came first in time
     arrival_ns: int = 0  # host time the newest frame of the set arrived (for latency)
+    # two-shot: the checked frame just before the set (it saw the newest frame's pattern), for motion detection
+    previous: Frame | None = None
 
     @property
     def frame_ids(self) -> tuple[int, ...]:
@@ -116,6 +118,11 @@ class FrameSet:
     @property
     def newest(self) -> Frame:
         return max(self.frames, key=lambda f: f.frame_id)
+
+    @property
+    def newest_index(self) -> int:
+        """The pattern index of the frame taken last."""
+        return 0 if self.reversed_order else len(self.frames) - 1
 
 
 @dataclass
@@ -162,7 +169,8 @@ class FrameChecker:
     stats: CaptureStats = field(default_factory=CaptureStats)
 
     def __post_init__(self) -> None:
-        self._history: deque[_Accepted] = deque(maxlen=max(2, self.n_patterns))
+        # (two-shot: a pair and the frame before it)
+        self._history: deque[_Accepted] = deque(maxlen=max(3, self.n_patterns))
         self._refs: dict[int, tuple[int, np.ndarray]] = {}  # pattern -> (tick, sample) of its last frame
         self._trigger_base: int | None = 0  # tick of trigger count 1; None = waiting for an anchor
         self._id_base: int | None = None  # tick = frame_id - _id_base when no trigger count
@@ -310,10 +318,16 @@ class FrameChecker:
             return None
         fs = sets[-1]
         frames = tuple(window[i].frame for i in fs.indices)
+        previous = None
+        if need == 2 and len(self._history) > need:  # the frame before the pair, if checked and consecutive
+            before = self._history[-need - 1]
+            same_pattern = before.frame.pattern == window[-1].frame.pattern
+            if before.verified and before.tick == window[0].tick - 1 and same_pattern:
+                previous = before.frame
         if not self.sliding or kind.disjoint_sets:
             self._history.clear()
         self.stats.sets += 1
-        return FrameSet(frames, fs.reversed_order, arrival_ns)
+        return FrameSet(frames, fs.reversed_order, arrival_ns, previous)
 
 
 def _alternation_sample(image: np.ndarray) -> np.ndarray:

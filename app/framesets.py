@@ -27,6 +27,12 @@ class FrameIndexSet:
     indices: tuple[int, ...]  # indices[p] is the frame that saw pattern p
     first: int  # index of the earliest frame of the set (for ordering / naming)
     reversed_order: bool = False  # two-shot: the pattern-1 frame came first in time
+    previous: int | None = None  # two-shot: the frame just before the set, if consecutive (it saw the newest's pattern)
+
+    @property
+    def newest(self) -> int:
+        """The pattern index of the set's frame taken last."""
+        return 0 if self.reversed_order else len(self.indices) - 1
 
 
 @dataclass
@@ -61,7 +67,8 @@ def group_frame_sets(
             (fa, pa), (fb, pb) = tags[i], tags[i + 1]
             if fb == fa + 1 and {pa, pb} == {0, 1}:
                 order = (i, i + 1) if pa == 0 else (i + 1, i)
-                sets.append(FrameIndexSet(order, i, reversed_order=pa == 1))
+                before = i - 1 if i > 0 and tags[i - 1] == (fa - 1, pb) else None  # (pb: the newest frame's pattern)
+                sets.append(FrameIndexSet(order, i, reversed_order=pa == 1, previous=before))
                 i += 1 if sliding else 2
             else:
                 if fb == fa + 1 and pa == pb:

@@ -50,6 +50,7 @@ class LiveDecoder:
         calibration: Calibration,
         depth_range_mm: tuple[float, float] | None,
         segmentation: str | None = None,
+        motion: str = "auto",
     ) -> None:
         from app.decode.pipeline import FrameSetDecoder
 
@@ -57,7 +58,9 @@ class LiveDecoder:
         self.patterns = patterns
         self.calibration = calibration
         meta = {**patterns.params, "scheme": patterns.scheme, "size": list(patterns.size)}
-        self.frameset_decoder = FrameSetDecoder(patterns.scheme, meta, calibration, depth_range_mm, segmentation)
+        self.frameset_decoder = FrameSetDecoder(
+            patterns.scheme, meta, calibration, depth_range_mm, segmentation, motion
+        )
         self.triangulator = self.frameset_decoder.triangulator
         self.decoder = self.frameset_decoder.decoder
         # (a mirrored rig's decoder leaves the depth map to a separate pass: TwoShotDecoder.decode_depth)
@@ -93,13 +96,19 @@ class LiveDecoder:
                 timer.cancel()
         return time.perf_counter() - t0
 
-    def decode_depth(self, images: tuple[np.ndarray, ...]) -> tuple[StripeMap, np.ndarray, float]:
+    def decode_depth(
+        self, images: tuple[np.ndarray, ...], newest: int | None = None, previous: np.ndarray | None = None
+    ) -> tuple[StripeMap, np.ndarray, float]:
         """images[p] saw pattern p: the stripe map, the depth map and the time of a separate triangulation pass in
-        ms (0 where the two-shot decoder triangulates row by row in its own pass: FrameSetDecoder.stripes_and_depth)."""
+        ms (0 where the two-shot decoder triangulates row by row in its own pass: FrameSetDecoder.stripes_and_depth).
+        newest, previous: the index of the frame taken last and the frame before the set, for motion (two-shot)."""
         if self.triangulates_in_decode:
-            stripes, depth = self.frameset_decoder.stripes_and_depth(list(images))
+            stripes, depth = self.frameset_decoder.stripes_and_depth(list(images), newest, previous)
             return stripes, depth, 0.0
+        images, moving = self.frameset_decoder.repaired(list(images), newest, previous)
         stripes = self.decode(images)
+        if moving is not None:
+            stripes.info["moving"] = moving
         t0 = time.perf_counter()
         depth = self.depth(stripes)
         return stripes, depth, (time.perf_counter() - t0) * 1e3
@@ -151,6 +160,7 @@ class PipelineStats:
     decode_ms: deque = field(default_factory=lambda: deque(maxlen=5000))
     triangulate_ms: deque = field(default_factory=lambda: deque(maxlen=5000))
     latency_ms: deque = field(default_factory=lambda: deque(maxlen=5000))
+    moving: deque = field(default_factory=lambda: deque(maxlen=120))  # share of pixels decoded as moving, per set
     frame_arrivals: deque = field(default_factory=lambda: deque(maxlen=120))  # ns, for a rolling rate
     result_times: deque = field(default_factory=lambda: deque(maxlen=120))
     # CPU seconds each thread used (thread name -> s), filled as the threads end: where the time goes.
@@ -355,7 +365,9 @@ class LivePipeline:
                 index, fs = self._sets.popleft()
             try:
                 t0 = time.perf_counter()
-                stripes, depth, tri_ms = self.processor.decode_depth(tuple(f.image for f in fs.frames))
+                previous = fs.previous.image if fs.previous is not None else None
+                images = tuple(f.image for f in fs.frames)
+                stripes, depth, tri_ms = self.processor.decode_depth(images, fs.newest_index, previous)
                 t2 = time.perf_counter()
                 t1 = t2 - tri_ms / 1e3  # (decode_ms includes the triangulation done in the decoder's pass)
             except Exception as exc:  # one bad set (or a decoder bug) must not kill the worker; counted, kept
@@ -369,6 +381,7 @@ class LivePipeline:
                 st.decode_ms.append(res.decode_ms)
                 st.triangulate_ms.append(res.triangulate_ms)
                 st.latency_ms.append(res.latency_ms)
+                st.moving.append(float(stripes.info.get("moving", 0.0)))
                 st.result_times.append(res.done_ns)
                 # Stale results exist only for a sink that shows them (the view); headless keeps the newest.
                 if self.latest is None or res.index > self.latest.index:
@@ -404,6 +417,7 @@ class LivePipeline:
             "latency_ms_p50": percentile(st.latency_ms, 50),
             "latency_ms_p95": percentile(st.latency_ms, 95),
             "decode_ms_p50": percentile(st.decode_ms, 50),
+            "moving_share": float(np.mean(st.moving)) if st.moving else 0.0,  # over the last sets decoded
             "triangulated_in_decode": self.processor is not None and self.processor.triangulates_in_decode,
             "triangulate_ms_p50": percentile(st.triangulate_ms, 50),
             "grab_ms_p50": percentile(st.grab_ms, 50),
@@ -424,6 +438,7 @@ def status_line(fig: dict, recording: str = "") -> str:
     lat_s = "-" if lat != lat else f"{lat:.0f} ms"
     return (
         f"{fig['frames_per_s']:5.1f} frames/s  {fig['depth_per_s']:5.1f} depth/s  latency p95 {lat_s}  "
+        f"moving {100 * fig.get('moving_share', 0.0):3.0f} %  "
         f"dropped {fig['dropped']}  refused {fig['refused']}  stale {fig['stale_sets'] + fig['stale_results']}"
         + (f"  {recording}" if recording else "")
     )

@@ -66,13 +66,18 @@ class Session:
         kw.setdefault("pace", self.pace)
         return CaptureLoop(camera, projector, trigger, self.scheme, len(self.patterns), rate_hz=self.rate_hz, **kw)
 
+    @property
+    def motion(self) -> str:
+        """Two-shot motion handling from the config's scheme.motion: auto (default; a replayed dump too) or off."""
+        return motion_mode(self.config)
+
     def processor(self) -> LiveDecoder:
         """The session's decoder, its kernels compiled or loaded before any frame arrives (LiveDecoder.warm_up): a
         first run on a machine says so on stderr while it compiles."""
         seg = None  # two-shot: the config's scheme.segmentation (checked when the session was built)
         if self.config is not None and get_scheme(self.scheme).segmentation:
             seg = self.config.get("scheme.segmentation", None, types=str)
-        proc = LiveDecoder(self.patterns, self.calibration, self.depth_range_mm, seg)
+        proc = LiveDecoder(self.patterns, self.calibration, self.depth_range_mm, seg, self.motion)
         proc.warm_up(self.frame_dtype, announce=self._announce_compile)
         return proc
 
@@ -101,7 +106,17 @@ def _scheme_options(cfg: Config, scheme: str) -> dict:
         seg = cfg.get("scheme.segmentation", types=str)
         if seg not in SEGMENTATIONS:
             raise InputError(f"{cfg.path}: key 'scheme.segmentation': {seg!r} (choose {', '.join(SEGMENTATIONS)})")
+    motion_mode(cfg)  # (checked when the session is built)
     return opts
+
+
+def motion_mode(cfg: Config | None) -> str:
+    """The config's scheme.motion: auto (the default) or off; another value is an InputError naming the key."""
+    from app.decode.motion import check_motion_mode  # lazy: the decoders compile with numba
+
+    if cfg is None:
+        return "auto"
+    return check_motion_mode(cfg.get("scheme.motion", "auto"), f"{cfg.path}: key 'scheme.motion'")
 
 
 def build_session(

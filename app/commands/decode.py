@@ -14,7 +14,7 @@ import cv2
 from app.argtypes import non_negative_int
 from app.decode.pipeline import EmptyResultWarning, FrameSetDecoder
 from app.export import depth_preview, stripe_colours, write_depth_png16, write_depth_tiff, write_ply, write_png
-from app.framesets import group_frame_sets
+from app.framesets import FrameIndexSet, group_frame_sets
 from app.fsutil import atomic_directory
 from core.calibration import Calibration
 from core.dump import Dump, read_dump
@@ -50,6 +50,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="two-shot stripes: code runs (default), zero crossings, or both merged (a little more coverage "
         "on grazing surfaces, twice the time)",
     )
+    p.add_argument(
+        "--motion",
+        choices=("auto", "off"),
+        default="auto",
+        help="two-shot: auto (default) decodes a pair's newest frame alone where the scene moved since the frame "
+        "before the pair; off decodes every pair from the sign of its difference",
+    )
     p.add_argument("--png16", action="store_true", help="also write depth_NNNNNN.png (16-bit, 0.1 mm units)")
     p.add_argument("--preview", action="store_true", help="also write preview_NNNNNN.png (colourised depth)")
     p.set_defaults(func=run)
@@ -62,22 +69,29 @@ def _quiet_opencv() -> None:
 
 
 def _init(
-    folder: str, scheme: str, meta: dict, cal: Calibration | None, rng: tuple | None, seg: str | None = None
+    folder: str,
+    scheme: str,
+    meta: dict,
+    cal: Calibration | None,
+    rng: tuple | None,
+    seg: str | None = None,
+    motion: str = "auto",
 ) -> None:
     _quiet_opencv()
     warnings.simplefilter("ignore", EmptyResultWarning)
     _STATE["dump"] = read_dump(folder)
-    _STATE["decoder"] = FrameSetDecoder(scheme, meta, cal, rng, seg)
+    _STATE["decoder"] = FrameSetDecoder(scheme, meta, cal, rng, seg, motion)
     _STATE["range"] = rng
 
 
-def _work(job: tuple[int, tuple[int, ...], str, bool, bool]) -> tuple[int, int]:
-    n, indices, out, png16, preview = job
+def _work(job: tuple[int, FrameIndexSet, str, bool, bool]) -> tuple[int, int]:
+    n, fs, out, png16, preview = job
     dump: Dump = _STATE["dump"]
     dec: FrameSetDecoder = _STATE["decoder"]
-    frames = [dump.load_frame(i) for i in indices]
-    where = ", ".join(str(dump.folder / dump.frames[i].file) for i in indices)
-    res = dec.decode(frames, where=where)
+    frames = [dump.load_frame(i) for i in fs.indices]
+    where = ", ".join(str(dump.folder / dump.frames[i].file) for i in fs.indices)
+    previous = dump.load_frame(fs.previous) if fs.previous is not None and dec.motion is not None else None
+    res = dec.decode(frames, where=where, newest=fs.newest, previous=previous)
     o = Path(out)
     write_png(o / f"stripes_{n:06d}.png", stripe_colours(res.stripes.stripe))
     if res.depth is not None:
@@ -109,11 +123,12 @@ def run(args: argparse.Namespace) -> int:
     # Fail early, in this process, on the first set (sizes, calibration), with a one-line error.
     warnings.simplefilter("ignore", EmptyResultWarning)
     seg = getattr(args, "segmentation", None)
-    _init(str(dump.folder), dump.scheme, meta, cal, rng, seg)
+    motion = getattr(args, "motion", "auto")
+    _init(str(dump.folder), dump.scheme, meta, cal, rng, seg, motion)
     workers = args.workers or os.cpu_count() or 1
     empty = 0
     with atomic_directory(args.out) as tmp:
-        jobs = [(n, s.indices, str(tmp), args.png16, args.preview) for n, s in enumerate(sets)]
+        jobs = [(n, s, str(tmp), args.png16, args.preview) for n, s in enumerate(sets)]
         first = _work(jobs[0])
         empty += first[1] == 0
         done = 1
@@ -121,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
         if len(jobs) > 1:
             if workers > 1:
                 with ProcessPoolExecutor(
-                    workers, initializer=_init, initargs=(str(dump.folder), dump.scheme, meta, cal, rng, seg)
+                    workers, initializer=_init, initargs=(str(dump.folder), dump.scheme, meta, cal, rng, seg, motion)
                 ) as ex:
                     for _, nvalid in ex.map(_work, jobs[1:], chunksize=2):
                         empty += nvalid == 0

@@ -9,6 +9,7 @@ import numpy as np
 
 from app.decode.colour import camera_gamma_of
 from app.decode.fast import average_frames
+from app.decode.motion import MotionParams, check_motion_mode, repair
 from app.decode.stripemap import StripeMap
 from app.decode.twoshot import SEGMENTATIONS
 from app.schemes import get_scheme
@@ -41,12 +42,16 @@ class FrameSetDecoder:
         calibration: Calibration | None = None,
         depth_range_mm: tuple[float, float] | None = None,
         segmentation: str | None = None,
+        motion: str = "auto",
     ) -> None:
         """segmentation: two-shot stripes from code runs (default), zero crossings or both merged
-        (TwoShotParams: both covers grazing surfaces a little better at twice the time)."""
+        (TwoShotParams: both covers grazing surfaces a little better at twice the time). motion: "auto" decodes a
+        two-shot pair's newest frame alone where the scene moved since the frame before the pair (app/decode/motion.py;
+        the decode calls say which frame is newest and pass that previous frame), "off" always decodes the pair."""
         if segmentation is not None and segmentation not in SEGMENTATIONS:
             raise InputError(f"segmentation {segmentation!r}: choose {', '.join(SEGMENTATIONS)}")
         self.kind = get_scheme(scheme)  # an unknown name is an InputError
+        self.motion = MotionParams() if check_motion_mode(motion, "scheme") == "auto" and self.kind.shots == 2 else None
         self.scheme = self.kind.name
         self.calibration = calibration
         self.triangulator = None
@@ -79,10 +84,38 @@ class FrameSetDecoder:
         if self.calibration is not None:
             self.calibration.check_camera_size(shape[1], shape[0], where)
 
-    def stripes_and_depth(self, frames: list[np.ndarray]) -> tuple[StripeMap, np.ndarray | None]:
+    def stripes_and_depth(
+        self, frames: list[np.ndarray], newest: int | None = None, previous: np.ndarray | None = None
+    ) -> tuple[StripeMap, np.ndarray | None]:
         """The stripe map of a frame set (in pattern order, sizes checked by the caller) and, with a calibration,
         its depth map: the per-frame work of decode() without the texture and the point cloud. The two-shot
-        decoder triangulates row by row in its own pass where the triangulator has the closed form."""
+        decoder triangulates row by row in its own pass where the triangulator has the closed form. newest: the
+        index in frames of the frame taken last; previous: the frame taken just before the set (it saw the newest
+        frame's pattern): with both and motion "auto", a two-shot pair decodes its newest frame where the scene moved
+        (the stripe map's info "moving" = the share of such pixels)."""
+        frames, moving = self.repaired(frames, newest, previous)
+        sm, depth = self._stripes_and_depth(frames)
+        if moving is not None:
+            sm.info["moving"] = moving
+        return sm, depth
+
+    def repaired(
+        self, frames: list[np.ndarray], newest: int | None, previous: np.ndarray | None
+    ) -> tuple[list[np.ndarray], float | None]:
+        """(frames with the older frame of a two-shot pair repaired where the scene moved, the share of moving
+        pixels), or the frames as they are and None without motion, a newest index or a previous frame."""
+        if self.motion is None or newest is None or previous is None:
+            return frames, None
+        if newest not in (0, 1):
+            raise InputError(f"newest frame index {newest} of a two-shot pair: must be 0 or 1")
+        older = 1 - newest
+        fixed, n = repair(frames[newest], frames[older], previous, self.decoder.luts(frames[newest].dtype),
+                          self.decoder.channels, self.motion)  # fmt: skip
+        out = list(frames)
+        out[older] = fixed
+        return out, n / max(1, frames[newest].shape[0] * frames[newest].shape[1])
+
+    def _stripes_and_depth(self, frames: list[np.ndarray]) -> tuple[StripeMap, np.ndarray | None]:
         depth = None
         geometry = self.triangulator.moebius_geometry if self.triangulator is not None else None
         if self.kind.depth_in_decode and geometry is not None:
@@ -97,10 +130,19 @@ class FrameSetDecoder:
         """The stripe map alone of a frame set in pattern order (no checks, no triangulation)."""
         return self.kind.stripes(self.decoder, frames)
 
-    def decode(self, frames: list[np.ndarray], where: str = "frame set") -> DecodedSet:
-        """frames in pattern order (frames[p] saw pattern p; their order in time does not matter)."""
+    def decode(
+        self,
+        frames: list[np.ndarray],
+        where: str = "frame set",
+        newest: int | None = None,
+        previous: np.ndarray | None = None,
+    ) -> DecodedSet:
+        """frames in pattern order (frames[p] saw pattern p); newest, previous: see stripes_and_depth (without them
+        the order in time does not matter)."""
         self.check_frames(frames, where)
-        sm, depth = self.stripes_and_depth(frames)
+        if previous is not None:
+            self.check_frames([previous] * self.shots, f"{where} (previous frame)")
+        sm, depth = self.stripes_and_depth(frames, newest, previous)
         texture = average_frames_of(frames[0], frames[1]) if self.kind.shots == 2 else frames[0]  # stripes cancel
         if not sm.valid.any():
             warnings.warn(

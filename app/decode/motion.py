@@ -1,0 +1,167 @@
+"""Motion-tolerant two-shot decoding: the newest frame decodes alone where the scene moved.
+
+A two-shot pair (frame 2 the per-channel inverse of frame 1) decodes from the sign of frame2 - frame1. When the
+object moves between the two frames, a stripe moves by more than its own width and that sign is wrong. But each
+two-shot frame alone is already a one-shot code with the same windows: its channels' levels are the code, and the
+other frame only their inverse. So where the newest frame differs from the previous frame of the same pattern (the
+frame before the pair), the older frame of the pair is replaced by the newest frame's inverse about its local
+envelope (`app/decode/fast/motion.py`), and the unchanged two-shot decoder decodes the newest frame's geometry
+there. Where nothing changed the pair is decoded as it is, bit for bit. Without a previous frame (the first pair
+of a stream, a lone pair) there is no evidence of motion and the pair is decoded as it is.
+
+`repair_reference` states the computation in plain numpy; `fast.repair_older` is the compiled form the decoders use.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from app.decode.colour import CHANNEL_INDEX
+from app.decode.fast.motion import repair_older
+from app.errors import InputError
+
+MOTION_MODES = ("auto", "off")
+
+
+@dataclass(frozen=True)
+class MotionParams:
+    """When a pixel counts as moving, and how the newest frame is thresholded there."""
+
+    radius: int = 6  # envelope half-width along the row, px: a few stripes, so both levels of a channel are in it
+    spread: int = 4  # a moving pixel marks this many neighbours either side along the row (stripe edges near it)
+    change_rel: float = 0.5  # a change must exceed this share of the local contrast (hi - lo) ...
+    change_noise: float = 8.0  # ... this multiple of the two frames' noise slopes (linear per raw 8-bit step) ...
+    change_floor: float = 8.0  # ... and this many linear 8-bit units (dark surfaces' noise, compressed by gamma)
+
+    def limits(self) -> np.ndarray:
+        return np.array([self.change_rel, self.change_noise, self.change_floor], np.float32)
+
+
+def check_motion_mode(value: object, where: str) -> str:
+    """'auto' or 'off' (YAML's bare off reads as False), else an InputError naming where."""
+    if value is False:
+        return "off"
+    if value not in MOTION_MODES:
+        raise InputError(f"{where}: motion must be one of {', '.join(MOTION_MODES)}, found {value!r}")
+    return str(value)
+
+
+def watched_channels(channels: str) -> np.ndarray:
+    """The camera channels whose change marks motion: those of the pattern's channels."""
+    return np.array(sorted(CHANNEL_INDEX[c] for c in channels.upper()), np.int64)
+
+
+INVERSE_BINS = 4096  # the inverse table's bins over the linear range: 0.06 linear 8-bit units each
+
+
+def inverse_table(lin: np.ndarray, bins: int = INVERSE_BINS) -> tuple[np.ndarray, np.ndarray]:
+    """Linear value -> raw level: (inverse (3, bins) of each bin's nearest raw level per channel, the lower on a
+    tie; grid float32 (first bin's value, bins per linear unit, bins)), over the range of all channels."""
+    first, last = float(lin.min()), float(lin.max())
+    scale = (bins - 1) / max(last - first, 1e-12)
+    centres = (first + np.arange(bins) / scale).astype(np.float32)
+    inverse = np.empty((lin.shape[0], bins), np.int32)
+    for c in range(lin.shape[0]):
+        i = np.searchsorted(lin[c], centres, side="left").clip(0, lin.shape[1] - 1)
+        below = np.maximum(i - 1, 0)
+        take_below = (i > 0) & (centres - lin[c, below] <= lin[c, i] - centres)
+        inverse[c] = np.where(take_below, below, i)
+    return inverse, np.array([first, scale, bins], np.float32)
+
+
+def repair(
+    newest: np.ndarray,
+    older: np.ndarray,
+    previous: np.ndarray,
+    luts: tuple[np.ndarray, np.ndarray],
+    channels: str,
+    params: MotionParams,
+) -> tuple[np.ndarray, int]:
+    """(the older frame repaired where the scene moved, the number of moving pixels); frames (H, W, 3) of one
+    dtype, previous the frame before the older one (it saw the newest frame's pattern). A previous frame of another
+    size or dtype is an InputError."""
+    if previous.shape != newest.shape or previous.dtype != newest.dtype:
+        raise InputError(
+            f"previous frame for motion is {previous.shape} {previous.dtype}, the pair {newest.shape} {newest.dtype}"
+        )
+    lin, dlin = luts
+    inverse, grid = inverse_table(lin)
+    newest_lin, older_lin, previous_lin = (linear(f, lin) for f in (newest, older, previous))
+    window = np.ones((1, 2 * int(params.radius) + 1), np.uint8)
+    # (OpenCV's morphology clips the window at the image's ends: its default border never wins)
+    hi = cv2.dilate(cv2.max(newest_lin, older_lin), window)
+    lo = cv2.erode(cv2.min(newest_lin, older_lin), window)
+    slopes = cv2.add(linear(newest, dlin), linear(previous, dlin))
+    out = np.empty_like(older)
+    n = repair_older(
+        newest_lin,
+        previous_lin,
+        hi,
+        lo,
+        slopes,
+        np.ascontiguousarray(older),
+        inverse,
+        grid,
+        watched_channels(channels),
+        params.limits(),
+        int(params.spread),
+        out,
+    )
+    return out, int(n)
+
+
+def linear(frame: np.ndarray, table: np.ndarray) -> np.ndarray:
+    """table[c, frame[..., c]] as (H, W, 3) float32: OpenCV's lookup for 8-bit frames, else numpy's."""
+    if frame.dtype == np.uint8 and table.shape == (3, 256):
+        return cv2.LUT(np.ascontiguousarray(frame), np.ascontiguousarray(table.T).reshape(1, 256, 3))
+    return np.ascontiguousarray(table[np.arange(3), frame])
+
+
+def repair_reference(
+    newest: np.ndarray,
+    older: np.ndarray,
+    previous: np.ndarray,
+    luts: tuple[np.ndarray, np.ndarray],
+    channels: str,
+    params: MotionParams,
+) -> tuple[np.ndarray, int]:
+    """repair() in plain numpy: the specification of `fast.repair_older`."""
+    lin, dlin = luts
+    ch = np.arange(3)
+    ln, lo_, lp = lin[ch, newest], lin[ch, older], lin[ch, previous]  # (H, W, 3) linear values
+    r = params.radius
+    up = np.maximum(ln, lo_)
+    down = np.minimum(ln, lo_)
+    W = newest.shape[1]
+    hi = up.copy()
+    lo = down.copy()
+    for o in range(1, r + 1):  # window extremes along the row, clipped at its ends
+        hi[:, : W - o] = np.maximum(hi[:, : W - o], up[:, o:])
+        hi[:, o:] = np.maximum(hi[:, o:], up[:, : W - o])
+        lo[:, : W - o] = np.minimum(lo[:, : W - o], down[:, o:])
+        lo[:, o:] = np.minimum(lo[:, o:], down[:, : W - o])
+    slopes = dlin[ch, newest] + dlin[ch, previous]
+    limit = np.maximum(
+        np.maximum(np.float32(params.change_rel) * (hi - lo), np.float32(params.change_noise) * slopes),
+        np.float32(params.change_floor),
+    )
+    w = watched_channels(channels)
+    changed = (np.abs(ln - lp) > limit)[..., w].any(axis=2)
+    neighbour = np.zeros_like(changed)  # a change counts where a neighbour along the row changed too
+    neighbour[:, 1:] |= changed[:, :-1]
+    neighbour[:, :-1] |= changed[:, 1:]
+    changed &= neighbour
+    moving = changed.copy()
+    for o in range(1, params.spread + 1):
+        moving[:, : W - o] |= changed[:, o:]
+        moving[:, o:] |= changed[:, : W - o]
+    inverse, grid = inverse_table(lin)
+    target = hi + lo - ln  # the newest frame's inverse about the envelope, in linear units
+    bins = np.clip(((target - grid[0]) * grid[1] + np.float32(0.5)).astype(np.int64), 0, int(grid[2]) - 1)
+    out = older.copy()
+    for c in range(3):
+        out[..., c][moving] = inverse[c, bins[..., c][moving]]
+    return out, int(moving.sum())

@@ -1,0 +1,113 @@
+"""Moving scenes: the newest frame of a sliding two-shot pair decoded against the rig's truth of that frame."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from app.bench.motion import score
+from app.decode.motion import MotionParams, check_motion_mode, repair, repair_reference
+from app.decode.pipeline import FrameSetDecoder
+from app.errors import InputError
+from app.framesets import group_frame_sets
+from app.patterns import make_patterns
+from drivers.sim.rig import VirtualRig
+
+SMALL = {"camera_size": (320, 240), "projector_size": (512, 384)}
+
+
+def sequence(scene: str, **overrides):
+    """A small rig, four frames of the alternating patterns 0, 1, 0, 1 rendered while it moves, the truth after
+    each frame, and a two-shot FrameSetDecoder per motion mode."""
+    rig = VirtualRig.from_preset(scene, **{**SMALL, **overrides})
+    cal = rig.calibration
+    cal.extra["camera_gamma"] = float(rig.options.camera_gamma)
+    ps = make_patterns("two-shot", cal.projector_size)
+    frames, truths = [], []
+    for i in range(4):
+        frames.append(rig.render(ps.images[i % 2]))
+        truths.append((rig.ground_truth.depth.copy(), rig.ground_truth.lit.copy()))
+    meta = {"scheme": "two-shot", "size": list(ps.size), "images": ps.names, **ps.params}
+    decoders = {m: FrameSetDecoder("two-shot", meta, cal, rig.depth_range_mm, motion=m) for m in ("auto", "off")}
+    return frames, truths, decoders
+
+
+def newest_pairs(frames, truths):
+    """The sliding pairs (frames 1-2: newest is pattern 0; 2-3: pattern 1): (pair in pattern order, newest's
+    pattern index, the frame before the pair, the newest frame's truth)."""
+    return [([frames[2], frames[1]], 0, frames[0], truths[2]), ([frames[2], frames[3]], 1, frames[1], truths[3])]
+
+
+@pytest.fixture(scope="module")
+def moving_face():
+    return sequence("face", motion_mm_per_frame=(8.0, 0.0, 0.0))
+
+
+@pytest.mark.parametrize("bit_depth", [8, 16])
+def test_the_compiled_repair_is_its_numpy_statement(bit_depth):
+    frames, _, decoders = sequence("cube", motion_mm_per_frame=(4.0, 0.0, 0.0), bit_depth=bit_depth)
+    luts = decoders["auto"].decoder.luts(frames[0].dtype)
+    fast, n_fast = repair(frames[3], frames[2], frames[1], luts, "GB", MotionParams())
+    ref, n_ref = repair_reference(frames[3], frames[2], frames[1], luts, "GB", MotionParams())
+    assert n_fast == n_ref > 0.2 * frames[0].shape[0] * frames[0].shape[1]
+    np.testing.assert_array_equal(fast, ref)
+
+
+@pytest.mark.parametrize("scene", ["face", "colour_panel", "cube"])
+def test_a_still_scene_decodes_bit_for_bit_as_the_pair(scene):
+    frames, truths, decoders = sequence(scene)
+    for pair, newest, previous, _ in newest_pairs(frames, truths):
+        sm_auto, depth_auto = decoders["auto"].stripes_and_depth(pair, newest, previous)
+        sm_off, depth_off = decoders["off"].stripes_and_depth(pair)
+        assert sm_auto.info["moving"] == 0.0
+        np.testing.assert_array_equal(sm_auto.column, sm_off.column)
+        np.testing.assert_array_equal(depth_auto, depth_off)
+
+
+def test_at_hand_speed_the_newest_frame_decodes_right(moving_face):
+    """8 mm/frame (0.5 m/s at 60 Hz): the pair's sign alone loses coverage and makes gross errors; the newest
+    frame decoded where the scene moved is right against its own truth."""
+    frames, truths, decoders = moving_face
+    for pair, newest, previous, (truth_depth, lit) in newest_pairs(frames, truths):
+        sm, depth = decoders["auto"].stripes_and_depth(pair, newest, previous)
+        coverage, correct, gross = score(depth, truth_depth, lit)
+        off = score(decoders["off"].stripes_and_depth(pair)[1], truth_depth, lit)
+        assert sm.info["moving"] > 0.3
+        # (at 320x240 a camera pixel spans twice the depth it does at 640x480: a still face is 91 % within 1 mm)
+        assert coverage >= 0.85 and coverage >= off[0] + 0.25, (coverage, off)
+        assert correct >= 0.92 and correct >= off[1] + 0.15, (correct, off)
+        assert gross <= 0.008 and off[2] >= 4 * gross, (gross, off)  # (the pair alone: wrong stripe copies)
+
+
+def test_without_the_frame_before_the_pair_decodes_as_it_is(moving_face):
+    frames, _, decoders = moving_face
+    pair = [frames[2], frames[3]]
+    sm, depth = decoders["auto"].stripes_and_depth(pair, 1, None)
+    sm_off, depth_off = decoders["off"].stripes_and_depth(pair)
+    assert "moving" not in sm.info
+    np.testing.assert_array_equal(depth, depth_off)
+
+
+def test_decode_checks_the_previous_frame(moving_face):
+    frames, _, decoders = moving_face
+    with pytest.raises(InputError, match="previous frame"):
+        decoders["auto"].decode([frames[2], frames[3]], newest=1, previous=frames[1][:100])
+
+
+def test_motion_modes():
+    assert check_motion_mode("auto", "x") == "auto"
+    assert check_motion_mode(False, "x") == "off"  # (YAML reads a bare off as false)
+    with pytest.raises(InputError, match="cfg.yaml: key 'scheme.motion': motion must be one of auto, off"):
+        check_motion_mode("fast", "cfg.yaml: key 'scheme.motion'")
+
+
+def test_sliding_pairs_know_the_frame_before_them():
+    tags = [(10, 0), (11, 1), (12, 0), (13, 1), (15, 0), (16, 1)]
+    sets, _ = group_frame_sets(tags, "two-shot", 2)
+    # pairs 0-1 (none before), 1-2 (frame 0 saw pattern 0, the newest's), 2-3 (frame 1), then after the gap 4-5
+    assert [(s.indices, s.newest, s.previous) for s in sets] == [
+        ((0, 1), 1, None),
+        ((2, 1), 0, 0),
+        ((2, 3), 1, 1),
+        ((4, 5), 1, None),
+    ]
