@@ -83,7 +83,7 @@ def test_without_the_frame_before_the_pair_decodes_as_it_is(moving_face):
     frames, _, decoders = moving_face
     pair = [frames[2], frames[3]]
     sm, depth = decoders["auto"].stripes_and_depth(pair, 1, None)
-    sm_off, depth_off = decoders["off"].stripes_and_depth(pair)
+    _, depth_off = decoders["off"].stripes_and_depth(pair)
     assert "moving" not in sm.info
     np.testing.assert_array_equal(depth, depth_off)
 
@@ -97,7 +97,7 @@ def test_decode_checks_the_previous_frame(moving_face):
 def test_motion_modes():
     assert check_motion_mode("auto", "x") == "auto"
     assert check_motion_mode(False, "x") == "off"  # (YAML reads a bare off as false)
-    with pytest.raises(InputError, match="cfg.yaml: key 'scheme.motion': motion must be one of auto, off"):
+    with pytest.raises(InputError, match=r"cfg\.yaml: key 'scheme\.motion': motion must be one of auto, off"):
         check_motion_mode("fast", "cfg.yaml: key 'scheme.motion'")
 
 
