@@ -16,7 +16,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from app.decode.colour import CHANNEL_INDEX
@@ -89,35 +88,22 @@ def repair(
         )
     lin, dlin = luts
     inverse, grid = inverse_table(lin)
-    newest_lin, older_lin, previous_lin = (linear(f, lin) for f in (newest, older, previous))
-    window = np.ones((1, 2 * int(params.radius) + 1), np.uint8)
-    # (OpenCV's morphology clips the window at the image's ends: its default border never wins)
-    hi = cv2.dilate(cv2.max(newest_lin, older_lin), window)
-    lo = cv2.erode(cv2.min(newest_lin, older_lin), window)
-    slopes = cv2.add(linear(newest, dlin), linear(previous, dlin))
     out = np.empty_like(older)
     n = repair_older(
-        newest_lin,
-        previous_lin,
-        hi,
-        lo,
-        slopes,
+        np.ascontiguousarray(newest),
         np.ascontiguousarray(older),
+        np.ascontiguousarray(previous),
+        lin,
+        dlin,
         inverse,
         grid,
         watched_channels(channels),
         params.limits(),
+        int(params.radius),
         int(params.spread),
         out,
     )
     return out, int(n)
-
-
-def linear(frame: np.ndarray, table: np.ndarray) -> np.ndarray:
-    """table[c, frame[..., c]] as (H, W, 3) float32: OpenCV's lookup for 8-bit frames, else numpy's."""
-    if frame.dtype == np.uint8 and table.shape == (3, 256):
-        return cv2.LUT(np.ascontiguousarray(frame), np.ascontiguousarray(table.T).reshape(1, 256, 3))
-    return np.ascontiguousarray(table[np.arange(3), frame])
 
 
 def repair_reference(

@@ -23,58 +23,170 @@ import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def repair_older(
-    newest_lin: np.ndarray,
-    previous_lin: np.ndarray,
-    hi: np.ndarray,
-    lo: np.ndarray,
-    slopes: np.ndarray,
+    newest: np.ndarray,
     older: np.ndarray,
+    previous: np.ndarray,
+    lin: np.ndarray,
+    dlin: np.ndarray,
     inverse: np.ndarray,
     grid: np.ndarray,
     watched: np.ndarray,
     limits: np.ndarray,
+    radius: int,
     spread: int,
     out: np.ndarray,
 ) -> int:
-    """Write the repaired older frame into out (the older frame's shape and dtype) and return the moving pixels.
+    """Write the repaired older frame into out (the frames' shape and dtype) and return the moving pixels.
 
-    newest_lin, previous_lin: (H, W, 3) float32 linear values of the newest frame and of the frame before the older
-    one (it saw the newest frame's pattern); hi, lo: the largest and smallest linear value of the newest or the older
-    frame within the envelope window along the row; slopes: the two frames' noise slopes summed (linear per raw 8-bit
-    step). inverse, grid: linear value -> nearest raw level per channel (app.decode.motion.inverse_table). watched:
-    the camera channels (int64) whose change marks motion (the pattern's). limits: float32 (share of the local
-    contrast, multiple of the noise slopes, floor in linear 8-bit units) a change must exceed. spread: how far along
-    the row a moving pixel's mark reaches."""
-    H, W, C = newest_lin.shape
+    newest, older, previous: (H, W, 3) frames of one dtype; previous saw the newest frame's pattern. lin, dlin: the
+    camera's linearisation and its noise slope (3, levels) float32 (app.decode.colour.linearisation). inverse,
+    grid: linear value -> nearest raw level per channel (app.decode.motion.inverse_table). watched: the camera
+    channels (int64) whose change marks motion (the pattern's). limits: float32 (share of the local contrast,
+    multiple of the noise slopes, floor in linear 8-bit units) a change must exceed. radius: the envelope window's
+    half-width along the row; spread: how far along the row a moving pixel's mark reaches."""
+    H, W, C = newest.shape
+    rows = np.empty((5 * C + 8, W), np.float32)  # the row loop's scratch rows
+    flat = (older.reshape(H, W * C), out.reshape(H, W * C))  # (the rows' copy as one vector loop)
+    return _repair_rows((newest, older, previous), (lin, dlin, inverse, grid), watched, limits, radius, spread,
+                        rows, flat, out)  # fmt: skip
+
+
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
+def _repair_rows(frames, tables, watched, limits, radius, spread, rows, flat, out):
+    """repair_older's loop over the rows, without reference counting (its arrays all belong to the caller)."""
+    newest, older, previous = frames
+    lin, dlin, inverse, grid = tables
+    H, W, C = newest.shape
     rel, noise_k, floor = limits[0], limits[1], limits[2]
-    changed = np.empty(W, np.uint8)
-    moving = np.empty(W, np.uint8)
+    ln = rows[0:C]  # the newest frame's linear values, channel-planar
+    up = rows[C : 2 * C]  # max(newest, older) per pixel
+    down = rows[2 * C : 3 * C]
+    hi = rows[3 * C : 4 * C]  # their extremes over the window
+    lo = rows[4 * C : 5 * C]
+    spans = rows[5 * C : 5 * C + 4]
+    lp = rows[5 * C + 4]  # the previous frame's linear values, one channel
+    slopes = rows[5 * C + 5]  # the newest and the previous frame's noise slopes, summed
+    changed = rows[5 * C + 6]  # 1 where the pixel changed, else 0 (float32 rows: their max and min vectorise)
+    moving = rows[5 * C + 7]
+    older_flat, out_flat = flat
     n_moving = 0
     for y in range(H):
-        out[y] = older[y]
-        n, p, h, l, s = newest_lin[y], previous_lin[y], hi[y], lo[y], slopes[y]
-        changed[:] = 0
+        _copy_into(older_flat[y], out_flat[y])
+        for c in range(C):
+            table = lin[c]
+            lnc, upc, downc = ln[c], up[c], down[c]
+            for x in range(W):
+                a = table[newest[y, x, c]]
+                b = table[older[y, x, c]]
+                lnc[x] = a
+                upc[x] = a if a > b else b
+                downc[x] = b if a > b else a
+            _window_extremes(upc, downc, radius, hi[c], lo[c], spans)
+        _fill(changed, 0.0)
         for i in range(watched.shape[0]):
             c = watched[i]
+            table = lin[c]
+            slope = dlin[c]
+            for x in range(W):  # (the gathers, then the arithmetic over plain rows, which vectorises)
+                p = previous[y, x, c]
+                lp[x] = table[p]
+                slopes[x] = slope[newest[y, x, c]] + slope[p]
+            lnc, hic, loc = ln[c], hi[c], lo[c]
             for x in range(W):
-                limit = max(rel * (h[x, c] - l[x, c]), noise_k * s[x, c], floor)
-                changed[x] |= abs(n[x, c] - p[x, c]) > limit
+                limit = max(rel * (hic[x] - loc[x]), noise_k * slopes[x], floor)
+                u = np.float32(1.0) if abs(lnc[x] - lp[x]) > limit else np.float32(0.0)
+                changed[x] = u if u > changed[x] else changed[x]
         # a change counts where a neighbour along the row changed too: noise is per pixel, a moving edge is not
-        for x in range(W):
-            moving[x] = changed[x] & ((x > 0 and changed[x - 1]) | (x + 1 < W and changed[x + 1]))
-        changed[:] = moving
-        for o in range(1, spread + 1):
-            for x in range(W - o):
-                moving[x] |= changed[x + o]
-            for x in range(o, W):
-                moving[x] |= changed[x - o]
+        _fill(moving, 0.0)
+        _max_into(moving[: W - 1], changed[1:], moving[: W - 1])
+        _max_into(moving[1:], changed[: W - 1], moving[1:])
+        _min_into(changed, moving, changed)
+        _copy_into(changed, moving)
+        for o in range(1, min(spread, W - 1) + 1):
+            _max_into(moving[: W - o], changed[o:], moving[: W - o])
+            _max_into(moving[o:], changed[: W - o], moving[o:])
         for x in range(W):
             if moving[x] == 0:
                 continue
             n_moving += 1
             for c in range(C):
-                out[y, x, c] = inverse[c, inverse_bin(h[x, c] + l[x, c] - n[x, c], grid)]
+                out[y, x, c] = inverse[c, inverse_bin(hi[c, x] + lo[c, x] - ln[c, x], grid)]
     return n_moving
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _window_extremes(up, down, radius, hi, lo, spans):
+    """hi[x] = max(up[x - radius : x + radius + 1]) and lo[x] = min(down[...]), the window clipped at the row's ends.
+    Inside the row from spans doubled to the largest power of two p in the window (a sparse table: two reads per
+    pixel; spans (4, W) float32 scratch, each pass from one row into another); the pixels whose window the row's
+    ends cut short are done directly. The loops read through views from each offset: an index x + s of unknown
+    sign would get numba's negative-index fix per element and stay scalar."""
+    W = up.shape[0]
+    p = 1
+    while 2 * p <= 2 * radius + 1:
+        p *= 2
+    src_hi, src_lo, dst_hi, dst_lo = spans[0], spans[1], spans[2], spans[3]
+    _copy_into(up, src_hi)
+    _copy_into(down, src_lo)
+    s = 1
+    while s < p and s < W:  # dst[x]: the extreme over [x, x + 2 s - 1], clipped at the row's end
+        n = W - s
+        _max_into(src_hi[:n], src_hi[s:], dst_hi[:n])
+        _min_into(src_lo[:n], src_lo[s:], dst_lo[:n])
+        _copy_into(src_hi[n:], dst_hi[n:])
+        _copy_into(src_lo[n:], dst_lo[n:])
+        src_hi, dst_hi = dst_hi, src_hi
+        src_lo, dst_lo = dst_lo, src_lo
+        s *= 2
+    n = W - 2 * radius  # pixels whose whole window is inside the row
+    if n > 0:
+        shift = 2 * radius - p + 1  # the second span's start, from the window's first pixel
+        _max_into(src_hi[:n], src_hi[shift : shift + n], hi[radius : radius + n])
+        _min_into(src_lo[:n], src_lo[shift : shift + n], lo[radius : radius + n])
+    ends = (range(0, min(radius, W)), range(max(W - radius, min(radius, W)), W))
+    for end in ends:  # the pixels whose window the row's ends cut short
+        _window_direct(up, down, radius, hi, lo, end)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _window_direct(up, down, radius, hi, lo, pixels):
+    W = up.shape[0]
+    for x in pixels:
+        first = max(x - radius, 0)
+        last = min(x + radius, W - 1)
+        u = up[first]
+        v = down[first]
+        for i in range(first + 1, last + 1):
+            u = up[i] if up[i] > u else u
+            v = down[i] if down[i] < v else v
+        hi[x] = u
+        lo[x] = v
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _max_into(a, b, out):
+    for x in range(out.shape[0]):
+        u, v = a[x], b[x]
+        out[x] = u if u > v else v
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _min_into(a, b, out):
+    for x in range(out.shape[0]):
+        u, v = a[x], b[x]
+        out[x] = u if u < v else v
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _copy_into(a, out):
+    for x in range(out.shape[0]):
+        out[x] = a[x]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _fill(out, value):
+    for x in range(out.shape[0]):
+        out[x] = value
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
