@@ -90,7 +90,9 @@ class LiveDecoder:
                 self.triangulator.depth(np.full((h, w), np.nan, np.float32))
             else:
                 blank = np.zeros((h, w, 3), dtype)
-                self.decode_depth((blank,) * len(self.patterns))
+                # (with motion the repair of a pair's older frame compiles too: app/decode/motion.py)
+                previous = blank if self.frameset_decoder.motion is not None else None
+                self.decode_depth((blank,) * len(self.patterns), len(self.patterns) - 1, previous)
         finally:
             if timer is not None:
                 timer.cancel()

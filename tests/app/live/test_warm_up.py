@@ -40,9 +40,11 @@ def test_session_processor_decodes_a_blank_set_of_the_camera_size_and_dtype_firs
     assert len(warmed) == 1
     (dtype,), kw = warmed[0]
     assert dtype == np.uint16 and kw["announce"] == session._announce_compile
-    ((images,), _), *_ = decoded
+    ((images, newest, previous), _), *_ = decoded
     assert [(im.shape, im.dtype) for im in images] == [((240, 320, 3), np.dtype(np.uint16))] * 2
     assert not any(im.any() for im in images)
+    # and with the frame before the pair, so that the motion repair compiles too
+    assert newest == 1 and previous.shape == (240, 320, 3) and previous.dtype == np.uint16 and not previous.any()
 
 
 def test_a_slow_warm_up_is_announced_once_and_a_fast_one_is_not(monkeypatch, sim_session):
@@ -86,6 +88,9 @@ NOTHING_NEW = textwrap.dedent(
     before = signatures()
     frames = [session.sim.rig.render(im) for im in session.patterns.images]
     _, depth, _ = processor.decode_depth(tuple(frames))
+    if len(frames) == 2:  # a sliding pair with the frame before it (motion handling)
+        previous = session.sim.rig.render(session.patterns.images[1])
+        processor.decode_depth(tuple(frames), 1, previous)
     after = signatures()
     print("warmed kernels", sum(bool(s) for s in before.values()))
     print("new", sorted(k for k, s in after.items() if s - before.get(k, set())))
