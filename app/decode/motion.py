@@ -29,14 +29,23 @@ MOTION_MODES = ("auto", "off")
 class MotionParams:
     """When a pixel counts as moving, and how the newest frame is thresholded there."""
 
-    radius: int = 6  # envelope half-width along the row, px: a few stripes, so both levels of a channel are in it
+    # The newest frame's envelope (its largest and smallest linear value per channel along the row): over the
+    # narrow window where that holds both levels of the channel (its contrast at least narrow_share of the wide
+    # window's), else over the wide one. Half-widths in px; a stripe is ~2 px, a channel keeps its level for up
+    # to a few stripes, and a narrow window reaches across fewer albedo and depth edges.
+    narrow_radius: int = 4
+    wide_radius: int = 9
+    narrow_share: float = 0.6
     spread: int = 4  # a moving pixel marks this many neighbours either side along the row (stripe edges near it)
     change_rel: float = 0.5  # a change must exceed this share of the local contrast (hi - lo) ...
     change_noise: float = 8.0  # ... this multiple of the two frames' noise slopes (linear per raw 8-bit step) ...
     change_floor: float = 8.0  # ... and this many linear 8-bit units (dark surfaces' noise, compressed by gamma)
 
     def limits(self) -> np.ndarray:
-        return np.array([self.change_rel, self.change_noise, self.change_floor], np.float32)
+        return np.array([self.change_rel, self.change_noise, self.change_floor, self.narrow_share], np.float32)
+
+    def radii(self) -> np.ndarray:
+        return np.array([self.narrow_radius, self.wide_radius], np.int64)
 
 
 def check_motion_mode(value: object, where: str) -> str:
@@ -99,7 +108,7 @@ def repair(
         grid,
         watched_channels(channels),
         params.limits(),
-        int(params.radius),
+        params.radii(),
         int(params.spread),
         out,
     )
@@ -117,18 +126,22 @@ def repair_reference(
     """repair() in plain numpy: the specification of `fast.repair_older`."""
     lin, dlin = luts
     ch = np.arange(3)
-    ln, lo_, lp = lin[ch, newest], lin[ch, older], lin[ch, previous]  # (H, W, 3) linear values
-    r = params.radius
-    up = np.maximum(ln, lo_)
-    down = np.minimum(ln, lo_)
+    ln, lp = lin[ch, newest], lin[ch, previous]  # (H, W, 3) linear values
     W = newest.shape[1]
-    hi = up.copy()
-    lo = down.copy()
-    for o in range(1, r + 1):  # window extremes along the row, clipped at its ends
-        hi[:, : W - o] = np.maximum(hi[:, : W - o], up[:, o:])
-        hi[:, o:] = np.maximum(hi[:, o:], up[:, : W - o])
-        lo[:, : W - o] = np.minimum(lo[:, : W - o], down[:, o:])
-        lo[:, o:] = np.minimum(lo[:, o:], down[:, : W - o])
+
+    def envelope(r: int) -> tuple[np.ndarray, np.ndarray]:
+        hi, lo = ln.copy(), ln.copy()
+        for o in range(1, r + 1):  # window extremes along the row, clipped at its ends
+            hi[:, : W - o] = np.maximum(hi[:, : W - o], ln[:, o:])
+            hi[:, o:] = np.maximum(hi[:, o:], ln[:, : W - o])
+            lo[:, : W - o] = np.minimum(lo[:, : W - o], ln[:, o:])
+            lo[:, o:] = np.minimum(lo[:, o:], ln[:, : W - o])
+        return hi, lo
+
+    hi, lo = envelope(params.narrow_radius)
+    wide_hi, wide_lo = envelope(params.wide_radius)
+    narrow = hi - lo >= np.float32(params.narrow_share) * (wide_hi - wide_lo)
+    hi, lo = np.where(narrow, hi, wide_hi), np.where(narrow, lo, wide_lo)
     slopes = dlin[ch, newest] + dlin[ch, previous]
     limit = np.maximum(
         np.maximum(np.float32(params.change_rel) * (hi - lo), np.float32(params.change_noise) * slopes),

@@ -4,10 +4,10 @@ A two-shot pair decodes from the sign of frame2 - frame1, which holds only while
 newest frame differs from the previous frame of the same pattern (two frames earlier) by more than noise and a
 share of the local stripe contrast, the scene moved: there the older frame is replaced by the newest frame's own
 inverse about its local envelope, lin(older') = hi + lo - lin(newest), with hi and lo the largest and smallest
-linear value of either frame within `radius` pixels along the row. The pair's difference is then twice the newest
-frame's distance from its local midpoint: the newest frame decodes alone, as the one-shot code it is, while still
-pixels keep the pair's robustness to surface colour and ambient light. Elsewhere the older frame is left as it was,
-bit for bit, so a still scene decodes exactly as without this stage.
+linear value of the newest frame in a window along the row (MotionParams). The pair's difference is then twice
+the newest frame's distance from its local midpoint: the newest frame decodes alone, as the one-shot code it is,
+while still pixels keep the pair's robustness to surface colour and ambient light. Elsewhere the older frame is
+left as it was, bit for bit, so a still scene decodes exactly as without this stage.
 
 `app/decode/motion.py` holds the parameters and a plain numpy statement of the same computation (the tests
 compare both).
@@ -32,7 +32,7 @@ def repair_older(
     grid: np.ndarray,
     watched: np.ndarray,
     limits: np.ndarray,
-    radius: int,
+    radii: np.ndarray,
     spread: int,
     out: np.ndarray,
 ) -> int:
@@ -42,46 +42,50 @@ def repair_older(
     camera's linearisation and its noise slope (3, levels) float32 (app.decode.colour.linearisation). inverse,
     grid: linear value -> nearest raw level per channel (app.decode.motion.inverse_table). watched: the camera
     channels (int64) whose change marks motion (the pattern's). limits: float32 (share of the local contrast,
-    multiple of the noise slopes, floor in linear 8-bit units) a change must exceed. radius: the envelope window's
-    half-width along the row; spread: how far along the row a moving pixel's mark reaches."""
+    multiple of the noise slopes, floor in linear 8-bit units) a change must exceed, then the share of the wide
+    window's contrast the narrow window must keep to be used. radii: int64 (narrow, wide) half-widths of the
+    envelope windows along the row; spread: how far along the row a moving pixel's mark reaches."""
     H, W, C = newest.shape
-    rows = np.empty((5 * C + 8, W), np.float32)  # the row loop's scratch rows
+    rows = np.empty((3 * C + 10, W), np.float32)  # the row loop's scratch rows
     flat = (older.reshape(H, W * C), out.reshape(H, W * C))  # (the rows' copy as one vector loop)
-    return _repair_rows((newest, older, previous), (lin, dlin, inverse, grid), watched, limits, radius, spread,
+    return _repair_rows((newest, previous), (lin, dlin, inverse, grid), watched, limits, radii, spread,
                         rows, flat, out)  # fmt: skip
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
-def _repair_rows(frames, tables, watched, limits, radius, spread, rows, flat, out):
+def _repair_rows(frames, tables, watched, limits, radii, spread, rows, flat, out):
     """repair_older's loop over the rows, without reference counting (its arrays all belong to the caller)."""
-    newest, older, previous = frames
+    newest, previous = frames
     lin, dlin, inverse, grid = tables
     H, W, C = newest.shape
-    rel, noise_k, floor = limits[0], limits[1], limits[2]
+    rel, noise_k, floor, narrow_share = limits[0], limits[1], limits[2], limits[3]
     ln = rows[0:C]  # the newest frame's linear values, channel-planar
-    up = rows[C : 2 * C]  # max(newest, older) per pixel
-    down = rows[2 * C : 3 * C]
-    hi = rows[3 * C : 4 * C]  # their extremes over the window
-    lo = rows[4 * C : 5 * C]
-    spans = rows[5 * C : 5 * C + 4]
-    lp = rows[5 * C + 4]  # the previous frame's linear values, one channel
-    slopes = rows[5 * C + 5]  # the newest and the previous frame's noise slopes, summed
-    changed = rows[5 * C + 6]  # 1 where the pixel changed, else 0 (float32 rows: their max and min vectorise)
-    moving = rows[5 * C + 7]
+    hi = rows[C : 2 * C]  # their extremes over the envelope window
+    lo = rows[2 * C : 3 * C]
+    spans = rows[3 * C : 3 * C + 4]
+    wide_hi = rows[3 * C + 4]  # the extremes over the wide window, one channel
+    wide_lo = rows[3 * C + 5]
+    lp = rows[3 * C + 6]  # the previous frame's linear values, one channel
+    slopes = rows[3 * C + 7]  # the newest and the previous frame's noise slopes, summed
+    changed = rows[3 * C + 8]  # 1 where the pixel changed, else 0 (float32 rows: their max and min vectorise)
+    moving = rows[3 * C + 9]
     older_flat, out_flat = flat
     n_moving = 0
     for y in range(H):
         _copy_into(older_flat[y], out_flat[y])
         for c in range(C):
             table = lin[c]
-            lnc, upc, downc = ln[c], up[c], down[c]
+            lnc, hic, loc = ln[c], hi[c], lo[c]
             for x in range(W):
-                a = table[newest[y, x, c]]
-                b = table[older[y, x, c]]
-                lnc[x] = a
-                upc[x] = a if a > b else b
-                downc[x] = b if a > b else a
-            _window_extremes(upc, downc, radius, hi[c], lo[c], spans)
+                lnc[x] = table[newest[y, x, c]]
+            # the narrow window where it holds both levels of the channel (its contrast a share of the wide
+            # window's), else the wide one: a narrow window reaches across fewer albedo and depth edges
+            _window_extremes(lnc, lnc, radii[0], hic, loc, spans)
+            _window_extremes(lnc, lnc, radii[1], wide_hi, wide_lo, spans)
+            for x in range(W):
+                narrow = hic[x] - loc[x] >= narrow_share * (wide_hi[x] - wide_lo[x])
+                hic[x] = hic[x] if narrow else wide_hi[x]
+                loc[x] = loc[x] if narrow else wide_lo[x]
         _fill(changed, 0.0)
         for i in range(watched.shape[0]):
             c = watched[i]
