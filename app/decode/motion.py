@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.decode.colour import CHANNEL_INDEX
+from app.decode.fast.differences import pair_tables
 from app.decode.fast.motion import repair_older
 from app.errors import InputError
 
@@ -80,6 +81,32 @@ def inverse_table(lin: np.ndarray, bins: int = INVERSE_BINS) -> tuple[np.ndarray
     return inverse, np.array([first, scale, bins], np.float32)
 
 
+class MotionRepair:
+    """repair() with its tables built once (per decoder and frame depth)."""
+
+    def __init__(self, luts: tuple[np.ndarray, np.ndarray], channels: str, params: MotionParams) -> None:
+        lin, dlin = luts
+        pairs = pair_tables(lin, dlin)  # (empty unless 8-bit)
+        self.tables = (lin, dlin, pairs, *inverse_table(lin))
+        self.levels = lin.shape[1]
+        self.watched = watched_channels(channels)
+        self.limits, self.radii, self.spread = params.limits(), params.radii(), int(params.spread)
+
+    def __call__(self, newest: np.ndarray, older: np.ndarray, previous: np.ndarray) -> tuple[np.ndarray, int]:
+        """(the older frame repaired where the scene moved, the number of moving pixels); frames (H, W, 3) of one
+        dtype, previous the frame before the older one (it saw the newest frame's pattern). A previous frame of
+        another size or dtype is an InputError."""
+        if previous.shape != newest.shape or previous.dtype != newest.dtype:
+            raise InputError(
+                f"previous frame for motion is {previous.shape} {previous.dtype}, "
+                f"the pair {newest.shape} {newest.dtype}"
+            )
+        frames = tuple(np.ascontiguousarray(f) for f in (newest, older, previous))
+        out = np.empty_like(frames[1])
+        n = repair_older(frames, self.tables, self.watched, self.limits, self.radii, self.spread, out)
+        return out, int(n)
+
+
 def repair(
     newest: np.ndarray,
     older: np.ndarray,
@@ -88,31 +115,8 @@ def repair(
     channels: str,
     params: MotionParams,
 ) -> tuple[np.ndarray, int]:
-    """(the older frame repaired where the scene moved, the number of moving pixels); frames (H, W, 3) of one
-    dtype, previous the frame before the older one (it saw the newest frame's pattern). A previous frame of another
-    size or dtype is an InputError."""
-    if previous.shape != newest.shape or previous.dtype != newest.dtype:
-        raise InputError(
-            f"previous frame for motion is {previous.shape} {previous.dtype}, the pair {newest.shape} {newest.dtype}"
-        )
-    lin, dlin = luts
-    inverse, grid = inverse_table(lin)
-    out = np.empty_like(older)
-    n = repair_older(
-        np.ascontiguousarray(newest),
-        np.ascontiguousarray(older),
-        np.ascontiguousarray(previous),
-        lin,
-        dlin,
-        inverse,
-        grid,
-        watched_channels(channels),
-        params.limits(),
-        params.radii(),
-        int(params.spread),
-        out,
-    )
-    return out, int(n)
+    """MotionRepair(luts, channels, params)(newest, older, previous): its tables built for this call."""
+    return MotionRepair(luts, channels, params)(newest, older, previous)
 
 
 def repair_reference(

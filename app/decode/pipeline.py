@@ -9,7 +9,7 @@ import numpy as np
 
 from app.decode.colour import camera_gamma_of
 from app.decode.fast import average_frames
-from app.decode.motion import MotionParams, check_motion_mode, repair
+from app.decode.motion import MotionParams, MotionRepair, check_motion_mode
 from app.decode.stripemap import StripeMap
 from app.decode.twoshot import SEGMENTATIONS
 from app.schemes import get_scheme
@@ -52,6 +52,7 @@ class FrameSetDecoder:
             raise InputError(f"segmentation {segmentation!r}: choose {', '.join(SEGMENTATIONS)}")
         self.kind = get_scheme(scheme)  # an unknown name is an InputError
         self.motion = MotionParams() if check_motion_mode(motion, "scheme") == "auto" and self.kind.shots == 2 else None
+        self._repairs: dict[np.dtype, MotionRepair] = {}  # per frame depth
         self.scheme = self.kind.name
         self.calibration = calibration
         self.triangulator = None
@@ -109,8 +110,10 @@ class FrameSetDecoder:
         if newest not in (0, 1):
             raise InputError(f"newest frame index {newest} of a two-shot pair: must be 0 or 1")
         older = 1 - newest
-        fixed, n = repair(frames[newest], frames[older], previous, self.decoder.luts(frames[newest].dtype),
-                          self.decoder.channels, self.motion)  # fmt: skip
+        dtype = np.dtype(frames[newest].dtype)
+        if dtype not in self._repairs:
+            self._repairs[dtype] = MotionRepair(self.decoder.luts(dtype), self.decoder.channels, self.motion)
+        fixed, n = self._repairs[dtype](frames[newest], frames[older], previous)
         out = list(frames)
         out[older] = fixed
         return out, n / max(1, frames[newest].shape[0] * frames[newest].shape[1])

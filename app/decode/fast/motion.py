@@ -19,17 +19,13 @@ import numpy as np
 from numba import njit
 
 import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
+from app.decode.fast.differences import PAIR_ENTRIES
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def repair_older(
-    newest: np.ndarray,
-    older: np.ndarray,
-    previous: np.ndarray,
-    lin: np.ndarray,
-    dlin: np.ndarray,
-    inverse: np.ndarray,
-    grid: np.ndarray,
+    frames: tuple,
+    tables: tuple,
     watched: np.ndarray,
     limits: np.ndarray,
     radii: np.ndarray,
@@ -38,25 +34,27 @@ def repair_older(
 ) -> int:
     """Write the repaired older frame into out (the frames' shape and dtype) and return the moving pixels.
 
-    newest, older, previous: (H, W, 3) frames of one dtype; previous saw the newest frame's pattern. lin, dlin: the
-    camera's linearisation and its noise slope (3, levels) float32 (app.decode.colour.linearisation). inverse,
-    grid: linear value -> nearest raw level per channel (app.decode.motion.inverse_table). watched: the camera
-    channels (int64) whose change marks motion (the pattern's). limits: float32 (share of the local contrast,
-    multiple of the noise slopes, floor in linear 8-bit units) a change must exceed, then the share of the wide
-    window's contrast the narrow window must keep to be used. radii: int64 (narrow, wide) half-widths of the
-    envelope windows along the row; spread: how far along the row a moving pixel's mark reaches."""
+    frames: (newest, older, previous), (H, W, 3) frames of one dtype; previous saw the newest frame's pattern.
+    tables: (lin, dlin, pairs, inverse, grid): the camera's linearisation and its noise slope (3, levels) float32
+    (app.decode.colour.linearisation); for 8-bit frames the pair table of app.decode.fast.pair_tables (one gather
+    for a change and its noise slopes), else an empty one; linear value -> nearest raw level per channel
+    (app.decode.motion.inverse_table). watched: the camera channels (int64) whose change marks motion (the
+    pattern's). limits: float32 (share of the local contrast, multiple of the noise slopes, floor in linear 8-bit
+    units) a change must exceed, then the share of the wide window's contrast the narrow window must keep to be
+    used. radii: int64 (narrow, wide) half-widths of the envelope windows along the row; spread: how far along the
+    row a moving pixel's mark reaches."""
+    newest, older, previous = frames
     H, W, C = newest.shape
     rows = np.empty((3 * C + 10, W), np.float32)  # the row loop's scratch rows
     flat = (older.reshape(H, W * C), out.reshape(H, W * C))  # (the rows' copy as one vector loop)
-    return _repair_rows((newest, previous), (lin, dlin, inverse, grid), watched, limits, radii, spread,
-                        rows, flat, out)  # fmt: skip
+    return _repair_rows((newest, previous), tables, watched, limits, radii, spread, rows, flat, out)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _repair_rows(frames, tables, watched, limits, radii, spread, rows, flat, out):
     """repair_older's loop over the rows, without reference counting (its arrays all belong to the caller)."""
     newest, previous = frames
-    lin, dlin, inverse, grid = tables
+    lin, dlin, pairs, inverse, grid = tables
     H, W, C = newest.shape
     rel, noise_k, floor, narrow_share = limits[0], limits[1], limits[2], limits[3]
     ln = rows[0:C]  # the newest frame's linear values, channel-planar
@@ -65,10 +63,12 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, flat, out
     spans = rows[3 * C : 3 * C + 4]
     wide_hi = rows[3 * C + 4]  # the extremes over the wide window, one channel
     wide_lo = rows[3 * C + 5]
-    lp = rows[3 * C + 6]  # the previous frame's linear values, one channel
+    change = rows[3 * C + 6]  # |newest - previous|, linear, one channel
     slopes = rows[3 * C + 7]  # the newest and the previous frame's noise slopes, summed
     changed = rows[3 * C + 8]  # 1 where the pixel changed, else 0 (float32 rows: their max and min vectorise)
     moving = rows[3 * C + 9]
+    pair_halves = pairs.view(np.float32)
+    shared_pairs = pairs.shape[0] == PAIR_ENTRIES  # (one pair table for the three channels)
     older_flat, out_flat = flat
     n_moving = 0
     for y in range(H):
@@ -89,26 +89,35 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, flat, out
         _fill(changed, 0.0)
         for i in range(watched.shape[0]):
             c = watched[i]
-            table = lin[c]
-            slope = dlin[c]
-            for x in range(W):  # (the gathers, then the arithmetic over plain rows, which vectorises)
-                p = previous[y, x, c]
-                lp[x] = table[p]
-                slopes[x] = slope[newest[y, x, c]] + slope[p]
-            lnc, hic, loc = ln[c], hi[c], lo[c]
+            # (the gathers, then the arithmetic over plain rows, which vectorises)
+            if pairs.shape[0] >= PAIR_ENTRIES:  # 8-bit: (lin[n] - lin[p], dlin[n] + dlin[p]) in one gather
+                base = 0 if shared_pairs else c * PAIR_ENTRIES
+                for x in range(W):
+                    e = 2 * (base + 256 * np.int64(previous[y, x, c]) + np.int64(newest[y, x, c]))
+                    change[x] = abs(pair_halves[e])
+                    slopes[x] = pair_halves[e + 1]
+            else:
+                table = lin[c]
+                slope = dlin[c]
+                lnc = ln[c]
+                for x in range(W):
+                    p = previous[y, x, c]
+                    change[x] = abs(lnc[x] - table[p])
+                    slopes[x] = slope[newest[y, x, c]] + slope[p]
+            hic, loc = hi[c], lo[c]
             for x in range(W):
                 limit = max(rel * (hic[x] - loc[x]), noise_k * slopes[x], floor)
-                u = np.float32(1.0) if abs(lnc[x] - lp[x]) > limit else np.float32(0.0)
+                u = np.float32(1.0) if change[x] > limit else np.float32(0.0)
                 changed[x] = u if u > changed[x] else changed[x]
         # a change counts where a neighbour along the row changed too: noise is per pixel, a moving edge is not
         _fill(moving, 0.0)
-        _max_into(moving[: W - 1], changed[1:], moving[: W - 1])
-        _max_into(moving[1:], changed[: W - 1], moving[1:])
-        _min_into(changed, moving, changed)
+        _max_inplace(moving[: W - 1], changed[1:])
+        _max_inplace(moving[1:], changed[: W - 1])
+        _min_inplace(changed, moving)
         _copy_into(changed, moving)
         for o in range(1, min(spread, W - 1) + 1):
-            _max_into(moving[: W - o], changed[o:], moving[: W - o])
-            _max_into(moving[o:], changed[: W - o], moving[o:])
+            _max_inplace(moving[: W - o], changed[o:])
+            _max_inplace(moving[o:], changed[: W - o])
         for x in range(W):
             if moving[x] == 0:
                 continue
@@ -129,24 +138,34 @@ def _window_extremes(up, down, radius, hi, lo, spans):
     p = 1
     while 2 * p <= 2 * radius + 1:
         p *= 2
-    src_hi, src_lo, dst_hi, dst_lo = spans[0], spans[1], spans[2], spans[3]
-    _copy_into(up, src_hi)
-    _copy_into(down, src_lo)
+    a_hi, a_lo, b_hi, b_lo = spans[0], spans[1], spans[2], spans[3]
+    _copy_into(up, a_hi)
+    _copy_into(down, a_lo)
     s = 1
-    while s < p and s < W:  # dst[x]: the extreme over [x, x + 2 s - 1], clipped at the row's end
+    in_a = True  # which pair of rows holds the spans so far (named rows, no swapped references: the loops vectorise)
+    while s < p and s < W:  # the spans over [x, x + 2 s - 1], clipped at the row's end
         n = W - s
-        _max_into(src_hi[:n], src_hi[s:], dst_hi[:n])
-        _min_into(src_lo[:n], src_lo[s:], dst_lo[:n])
-        _copy_into(src_hi[n:], dst_hi[n:])
-        _copy_into(src_lo[n:], dst_lo[n:])
-        src_hi, dst_hi = dst_hi, src_hi
-        src_lo, dst_lo = dst_lo, src_lo
+        if in_a:
+            _max_into(a_hi[:n], a_hi[s:], b_hi[:n])
+            _min_into(a_lo[:n], a_lo[s:], b_lo[:n])
+            _copy_into(a_hi[n:], b_hi[n:])
+            _copy_into(a_lo[n:], b_lo[n:])
+        else:
+            _max_into(b_hi[:n], b_hi[s:], a_hi[:n])
+            _min_into(b_lo[:n], b_lo[s:], a_lo[:n])
+            _copy_into(b_hi[n:], a_hi[n:])
+            _copy_into(b_lo[n:], a_lo[n:])
+        in_a = not in_a
         s *= 2
     n = W - 2 * radius  # pixels whose whole window is inside the row
     if n > 0:
         shift = 2 * radius - p + 1  # the second span's start, from the window's first pixel
-        _max_into(src_hi[:n], src_hi[shift : shift + n], hi[radius : radius + n])
-        _min_into(src_lo[:n], src_lo[shift : shift + n], lo[radius : radius + n])
+        if in_a:
+            _max_into(a_hi[:n], a_hi[shift : shift + n], hi[radius : radius + n])
+            _min_into(a_lo[:n], a_lo[shift : shift + n], lo[radius : radius + n])
+        else:
+            _max_into(b_hi[:n], b_hi[shift : shift + n], hi[radius : radius + n])
+            _min_into(b_lo[:n], b_lo[shift : shift + n], lo[radius : radius + n])
     ends = (range(0, min(radius, W)), range(max(W - radius, min(radius, W)), W))
     for end in ends:  # the pixels whose window the row's ends cut short
         _window_direct(up, down, radius, hi, lo, end)
@@ -179,6 +198,22 @@ def _min_into(a, b, out):
     for x in range(out.shape[0]):
         u, v = a[x], b[x]
         out[x] = u if u < v else v
+
+
+# In place, not _max_into(a, b, a): the vectoriser's run-time overlap check between a store and a load fails for
+# one array as both, and the loop then runs scalar.
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _max_inplace(a, b):
+    for x in range(a.shape[0]):
+        u, v = a[x], b[x]
+        a[x] = u if u > v else v
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _min_inplace(a, b):
+    for x in range(a.shape[0]):
+        u, v = a[x], b[x]
+        a[x] = u if u < v else v
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
