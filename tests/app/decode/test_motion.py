@@ -111,3 +111,33 @@ def test_sliding_pairs_know_the_frame_before_them():
         ((2, 3), 1, 1),
         ((4, 5), 1, None),
     ]
+
+
+def test_offline_decode_of_a_moving_dump_gives_the_newest_frames_geometry(tmp_path, run_cli):
+    """`slscan sim render` a moving face (two pattern cycles), `slscan decode` it with motion auto and off: the
+    sliding pairs that have a frame before them decode to their newest frame's truth."""
+    from app.imageio import read_float_tiff
+
+    dump = tmp_path / "moving"
+    r = run_cli(
+        "sim", "render", "--scene", "face", "--scheme", "two-shot", "--camera-size", "320x240",
+        "--set", "projector_size=[512, 384]", "--set", "motion_mm_per_frame=[8, 0, 0]", "--cycles", "2",
+        "--out", dump,
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    figures = {}
+    for mode in ("auto", "off"):
+        out = tmp_path / mode
+        r = run_cli("decode", dump, "--out", out, "--workers", "1", "--motion", mode)
+        assert r.returncode == 0, r.stderr
+        assert "decoded 3 two-shot frame set(s)" in r.stdout
+        # sets: frames (0, 1), (2, 1), (2, 3); the last two have a frame before them, their newest are 2 and 3
+        figures[mode] = []
+        for n, newest in ((1, 2), (2, 3)):
+            truth = dump / "ground_truth" / "frames" / f"{newest:06d}"
+            lit = read_float_tiff(truth / "depth.tiff") > 0  # (visible; lit is close to it on this scene)
+            depth = read_float_tiff(out / f"depth_{n:06d}.tiff")
+            figures[mode].append(score(depth, read_float_tiff(truth / "depth.tiff"), lit))
+    for (cov, cor, gross), (cov_off, cor_off, gross_off) in zip(figures["auto"], figures["off"], strict=True):
+        assert cov >= cov_off + 0.2 and cor >= cor_off + 0.1, figures
+        assert gross <= 0.01 and gross_off >= 3 * gross, figures
