@@ -478,7 +478,10 @@ def _subparsers() -> dict[str, argparse.ArgumentParser]:
 
 
 @pytest.fixture(scope="module")
-def sweep(tmp_path_factory) -> tuple[dict, dict, dict]:
+def sweep(tmp_path_factory, rig_session) -> tuple[dict, dict, dict]:
+    # rig_session has compiled the two-shot decoder into numba's cache (tests/reliability/conftest.py): `slscan live`
+    # opens its recorder, and so checks --png-level, only after the decoder's warm-up, which on an empty cache
+    # prints "compiling ..." and takes about a minute (app/commands/live.py); the cases time the refusal, not that.
     root = tmp_path_factory.mktemp("sweep")
     cases = build_cases(root)
     errs = root / "stderr"
