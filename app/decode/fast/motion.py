@@ -45,7 +45,7 @@ def repair_older(
     row a moving pixel's mark reaches."""
     newest, older, previous = frames
     H, W, C = newest.shape
-    rows = np.empty((3 * C + 10, W), np.float32)  # the row loop's scratch rows
+    rows = np.empty((5 * C + 8, W), np.float32)  # the row loop's scratch rows
     flat = (older.reshape(H, W * C), out.reshape(H, W * C))  # (the rows' copy as one vector loop)
     return _repair_rows((newest, previous), tables, watched, limits, radii, spread, rows, flat, out)
 
@@ -63,16 +63,41 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, flat, out
     spans = rows[3 * C : 3 * C + 4]
     wide_hi = rows[3 * C + 4]  # the extremes over the wide window, one channel
     wide_lo = rows[3 * C + 5]
-    change = rows[3 * C + 6]  # |newest - previous|, linear, one channel
-    slopes = rows[3 * C + 7]  # the newest and the previous frame's noise slopes, summed
-    changed = rows[3 * C + 8]  # 1 where the pixel changed, else 0 (float32 rows: their max and min vectorise)
-    moving = rows[3 * C + 9]
+    changed = rows[3 * C + 6]  # 1 where the pixel changed, else 0 (float32 rows: their max and min vectorise)
+    moving = rows[3 * C + 7]
+    changes = rows[3 * C + 8 : 4 * C + 8]  # |newest - previous|, linear, per watched channel
+    slopes = rows[4 * C + 8 : 5 * C + 8]  # the newest and the previous frame's noise slopes summed, per watched channel
     pair_halves = pairs.view(np.float32)
     shared_pairs = pairs.shape[0] == PAIR_ENTRIES  # (one pair table for the three channels)
     older_flat, out_flat = flat
     n_moving = 0
     for y in range(H):
         _copy_into(older_flat[y], out_flat[y])
+        # the changes first, and the test without its share of the local contrast: a row in which no two pixels
+        # pass it has no moving pixel, and needs no envelope (most rows of a still scene)
+        candidates = 0
+        for i in range(watched.shape[0]):
+            c = watched[i]
+            change, slope_sum = changes[i], slopes[i]
+            # (the gathers, then the arithmetic over plain rows, which vectorises)
+            if pairs.shape[0] >= PAIR_ENTRIES:  # 8-bit: (lin[n] - lin[p], dlin[n] + dlin[p]) in one gather
+                base = 0 if shared_pairs else c * PAIR_ENTRIES
+                for x in range(W):
+                    e = 2 * (base + 256 * np.int64(previous[y, x, c]) + np.int64(newest[y, x, c]))
+                    change[x] = abs(pair_halves[e])
+                    slope_sum[x] = pair_halves[e + 1]
+            else:
+                table = lin[c]
+                slope = dlin[c]
+                for x in range(W):
+                    n = newest[y, x, c]
+                    p = previous[y, x, c]
+                    change[x] = abs(table[n] - table[p])
+                    slope_sum[x] = slope[n] + slope[p]
+            for x in range(W):
+                candidates += 1 if change[x] > max(noise_k * slope_sum[x], floor) else 0
+        if candidates < 2:
+            continue
         for c in range(C):
             table = lin[c]
             lnc, hic, loc = ln[c], hi[c], lo[c]
@@ -89,24 +114,10 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, flat, out
         _fill(changed, 0.0)
         for i in range(watched.shape[0]):
             c = watched[i]
-            # (the gathers, then the arithmetic over plain rows, which vectorises)
-            if pairs.shape[0] >= PAIR_ENTRIES:  # 8-bit: (lin[n] - lin[p], dlin[n] + dlin[p]) in one gather
-                base = 0 if shared_pairs else c * PAIR_ENTRIES
-                for x in range(W):
-                    e = 2 * (base + 256 * np.int64(previous[y, x, c]) + np.int64(newest[y, x, c]))
-                    change[x] = abs(pair_halves[e])
-                    slopes[x] = pair_halves[e + 1]
-            else:
-                table = lin[c]
-                slope = dlin[c]
-                lnc = ln[c]
-                for x in range(W):
-                    p = previous[y, x, c]
-                    change[x] = abs(lnc[x] - table[p])
-                    slopes[x] = slope[newest[y, x, c]] + slope[p]
+            change, slope_sum = changes[i], slopes[i]
             hic, loc = hi[c], lo[c]
             for x in range(W):
-                limit = max(rel * (hic[x] - loc[x]), noise_k * slopes[x], floor)
+                limit = max(rel * (hic[x] - loc[x]), noise_k * slope_sum[x], floor)
                 u = np.float32(1.0) if change[x] > limit else np.float32(0.0)
                 changed[x] = u if u > changed[x] else changed[x]
         # a change counts where a neighbour along the row changed too: noise is per pixel, a moving edge is not
