@@ -304,10 +304,10 @@ def cast_cylinder(ol, R, r2, height, cc, d, sel, xy, box, t_best, sid_best, face
 
 @_jit
 def cast_ellipsoid(ol, R, axes, d, sel, xy, box, t_best, sid_best, face_best, sid, by_ray):
-    a, b, c = axes[0], axes[1], axes[2]
-    ox = ol[0] / a
-    oy = ol[1] / b
-    oz = ol[2] / c
+    ia, ib, ic = 1.0 / axes[0], 1.0 / axes[1], 1.0 / axes[2]
+    ox = ol[0] * ia
+    oy = ol[1] * ib
+    oz = ol[2] * ic
     qc = ox * ox + oy * oy + oz * oz - 1.0
     for j in range(sel.shape[0]):
         i = sel[j]
@@ -315,9 +315,9 @@ def cast_ellipsoid(ol, R, axes, d, sel, xy, box, t_best, sid_best, face_best, si
             continue
         k = i if by_ray else j
         dl0, dl1, dl2 = _dir(d, i, R)
-        dx = dl0 / a
-        dy = dl1 / b
-        dz = dl2 / c
+        dx = dl0 * ia
+        dy = dl1 * ib
+        dz = dl2 * ic
         qa = dx * dx + dy * dy + dz * dz
         qb = ox * dx + oy * dy + oz * dz
         disc = qb * qb - qa * qc
@@ -355,6 +355,17 @@ def cast_relief(
         p1y = ol[1] + t1 * dl1
         if min(p0x, p1x) > a or max(p0x, p1x) < -a or min(p0y, p1y) > b or max(p0y, p1y) < -b:
             continue
+        # a segment whose xy stays clearly outside the support ellipse meets nothing (the march
+        # finds no height there: a grid cell with a corner outside has none, and the ellipse is
+        # convex), so skip it: its point nearest the ellipse's centre, in the ellipse's metric
+        qa = (dl0 * dl0) / (a * a) + (dl1 * dl1) / (b * b)
+        if qa > 0:
+            qb = (ol[0] * dl0) / (a * a) + (ol[1] * dl1) / (b * b)
+            tm = min(max(-qb / qa, t0), t1)
+            xm = ol[0] + tm * dl0
+            ym = ol[1] + tm * dl1
+            if xm * xm / (a * a) + ym * ym / (b * b) >= 1.0 + 1e-6:
+                continue
         t = relief_march(ol[0], ol[1], ol[2], dl0, dl1, dl2, t0, t1, a, b, depth, bumps, grid, gx0, gy0, step)
         if t < t_best[k]:
             t_best[k] = t

@@ -89,33 +89,11 @@ def _shade_geometry(X, n, rays, pix, Cp, RT, T, K, dist5, lim, wp, hp, dist, lve
 
 @_jit
 def _shade_finish(
-    X,
-    n,
-    rays,
-    pix,
-    rho,
-    ks,
-    shin,
-    lvec,
-    dist,
-    cos_i,
-    uvp,
-    lit,
-    d_ref,
-    shading,
-    specular,
-    exposure,
-    amb3,
-    coef_img,
-    amb_img,
-    maps,
-    g_depth,
-    g_pts,
-    g_col,
-    g_row,
-):
-    """Per moving hit: shading, specular lobe, ambient; the frame buffers and the ground truth."""
-    for i in range(X.shape[0]):
+    n, rays, pix, rho, ks, shin, lvec, dist, cos_i, uvp, lit, d_ref, shading, specular, exposure, amb3,
+    coef_img, amb_img, maps,
+):  # fmt: skip
+    """Per moving hit: shading, specular lobe, ambient, projector pixel: the frame buffers."""
+    for i in range(pix.shape[0]):
         p = pix[i]
         q = d_ref / dist[i]
         falloff = q * q
@@ -144,20 +122,12 @@ def _shade_finish(
         amb_img[p, 0] = np.float32(rho[i, 0] * amb3[0] * exposure)
         amb_img[p, 1] = np.float32(rho[i, 1] * amb3[1] * exposure)
         amb_img[p, 2] = np.float32(rho[i, 2] * amb3[2] * exposure)
-        g_depth[i] = np.float32(X[i, 2])
-        g_pts[i, 0] = np.float32(X[i, 0])
-        g_pts[i, 1] = np.float32(X[i, 1])
-        g_pts[i, 2] = np.float32(X[i, 2])
         if lit[i]:
             maps[p, 0] = np.int16(np.floor(uvp[i, 0] + 0.5))
             maps[p, 1] = np.int16(np.floor(uvp[i, 1] + 0.5))
-            g_col[i] = np.float32(uvp[i, 0])
-            g_row[i] = np.float32(uvp[i, 1])
         else:
             maps[p, 0] = -1
             maps[p, 1] = -1
-            g_col[i] = np.nan
-            g_row[i] = np.nan
 
 
 @_jit
@@ -215,6 +185,42 @@ def _flag(pix, flags, value):
 
 
 @_jit
+def _group(sid, n_shapes):
+    """A stable order of the hits by shape (a counting sort), and each shape's [start, end)."""
+    count = np.zeros(n_shapes + 1, np.int64)
+    for s in sid:
+        count[s + 1] += 1
+    for k in range(n_shapes):
+        count[k + 1] += count[k]
+    start = count[:-1].copy()
+    order = np.empty(sid.shape[0], np.int64)
+    for j in range(sid.shape[0]):
+        order[count[sid[j]]] = j
+        count[sid[j]] += 1
+    return order, start, count[:-1]
+
+
+@_jit
+def _points(rays, pix, t):
+    """The hit points rays[pix] * t (N, 3), as numpy's broadcast product computes them."""
+    X = np.empty((pix.shape[0], 3))
+    for i in range(pix.shape[0]):
+        p = pix[i]
+        X[i, 0] = rays[p, 0] * t[i]
+        X[i, 1] = rays[p, 1] * t[i]
+        X[i, 2] = rays[p, 2] * t[i]
+    return X
+
+
+@_jit
+def _unshadowed(sel, tsh, dist, lit):
+    """lit[j] for the candidates j in sel: the shadow-ray hit is not nearer than the point (less a margin)."""
+    for j in sel:
+        d = dist[j]
+        lit[j] = tsh[j] >= d - (0.01 + 1e-5 * d)
+
+
+@_jit
 def _restore(pix, coef_img, amb_img, maps, st_coef, st_amb, st_map):
     for j in range(pix.shape[0]):
         p = pix[j]
@@ -259,16 +265,15 @@ class StaticLayer:
 
 
 class Frame:
-    """What one frame changed over the static layer (for its ground truth)."""
+    """What one frame changed over the static layer (for its ground truth, made when asked for)."""
 
     def __init__(self) -> None:
         empty = np.zeros(0, np.int64)
         self.shadowed = empty  # static pixels in a moving shape's projector shadow
-        self.pix = empty  # pixels showing a moving surface
-        self.depth = np.zeros(0, np.float32)
-        self.points = np.zeros((0, 3), np.float32)
-        self.col = self.row = np.zeros(0, np.float32)
-        self.lit = np.zeros(0, bool)
+        self.pix = empty  # pixels showing a moving surface, and at each:
+        self.points = np.zeros((0, 3))  # the surface point (camera mm)
+        self.uvp = np.zeros((0, 2))  # its projector coordinates (NaN where not in front)
+        self.lit = np.zeros(0, bool)  # whether the projector lights it
 
 
 class MovingLayer:
@@ -369,14 +374,10 @@ class MovingLayer:
         o = rig.options
         wp, hp = rig.geometry.projector_size
         m = len(pix)
-        if np.any(sid != sid[0]):  # one run of pixels per shape: slices, not masks
-            order = np.argsort(sid, kind="stable")
-            pix, t, sid, face = pix[order], t[order], sid[order], face[order]
-        cuts = np.flatnonzero(np.diff(sid)) + 1
-        starts = np.concatenate([[0], cuts])
-        ends = np.concatenate([cuts, [m]])
-        runs = [(int(sid[a]), int(a), int(b)) for a, b in zip(starts, ends, strict=True)]
-        X = rig._rays[pix] * t[:, None]
+        order, starts, ends = _group(sid, len(shapes))  # one run of pixels per shape: slices, not masks
+        pix, t, sid, face = pix[order], t[order], sid[order], face[order]
+        runs = [(i, int(a), int(b)) for i, (a, b) in enumerate(zip(starts, ends, strict=True)) if b > a]
+        X = _points(rig._rays, pix, t)
         n = np.empty((m, 3))
         rho = np.empty((m, 3))
         ks = np.empty(m)
@@ -419,11 +420,11 @@ class MovingLayer:
             cand,
         )
         # shadow rays toward the projector, against every shape that can be in the way
+        own = {i: (a, b) for i, a, b in runs}
         sel = np.nonzero(cand)[0]
         tsh = np.full(m, np.inf)
         junk = (self._junk_sid, self._junk_face)  # (m <= npx)
         reach = float(dist[sel].max()) if len(sel) else 0.0
-        own = {i: (a, b) for i, a, b in runs}
         for i, s in enumerate(shapes):
             if cast.distance_bound(s, self._Cp) > reach:
                 continue  # farther from the projector than every point here
@@ -436,40 +437,12 @@ class MovingLayer:
             for rays in parts:
                 cast.cast(s, i, self._Cp, neg_lvec, rays, xn, box, tsh, *junk, by_ray=True)
         lit = np.zeros(m, bool)
-        ds = dist[sel]
-        lit[sel] = tsh[sel] >= ds - (0.01 + 1e-5 * ds)
-        frame.pix = pix
-        frame.depth = np.empty(m, np.float32)
-        frame.points = np.empty((m, 3), np.float32)
-        frame.col = np.empty(m, np.float32)
-        frame.row = np.empty(m, np.float32)
-        frame.lit = lit
+        _unshadowed(sel, tsh, dist, lit)
+        frame.pix, frame.points, frame.uvp, frame.lit = pix, X, uvp, lit
         _shade_finish(
-            X,
-            n,
-            rig._rays,
-            pix,
-            rho,
-            ks,
-            shin,
-            lvec,
-            dist,
-            cos_i,
-            uvp,
-            lit,
-            rig._d_ref,
-            bool(o.shading),
-            bool(o.specular),
-            float(o.exposure),
-            self._amb3,
-            self.coef,
-            self.amb,
-            self.map,
-            frame.depth,
-            frame.points,
-            frame.col,
-            frame.row,
-        )
+            n, rig._rays, pix, rho, ks, shin, lvec, dist, cos_i, uvp, lit, rig._d_ref, bool(o.shading),
+            bool(o.specular), float(o.exposure), self._amb3, self.coef, self.amb, self.map,
+        )  # fmt: skip
 
     # ------------------------------------------------------------------ ground truth
     def ground_truth(self) -> tuple[np.ndarray, ...]:
@@ -480,10 +453,11 @@ class MovingLayer:
             lit[f.shadowed] = False
             col[f.shadowed] = np.nan
             row[f.shadowed] = np.nan
-            depth[f.pix] = f.depth
+            # as the full computation stores them: float32 of the float64 values, NaN where not lit
+            depth[f.pix] = f.points[:, 2]
             pts[f.pix] = f.points
-            col[f.pix] = f.col
-            row[f.pix] = f.row
+            col[f.pix] = np.where(f.lit, f.uvp[:, 0], np.nan)
+            row[f.pix] = np.where(f.lit, f.uvp[:, 1], np.nan)
             lit[f.pix] = f.lit
             self._gt = (depth, col, row, lit, pts)
         return self._gt

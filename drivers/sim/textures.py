@@ -61,16 +61,16 @@ def _patches(uv, pal, cw, ch, ox, oy, gap_mm, gap_color, base, out):
         y = uv[k, 1] - oy
         i = np.int64(np.floor(y / ch))
         j = np.int64(np.floor(x / cw))
-        inside = i >= 0 and i < rows and j >= 0 and j < cols
-        c = pal[i, j] if inside else base
-        if inside and gap_mm > 0:
+        if not (i >= 0 and i < rows and j >= 0 and j < cols):
+            out[k, 0], out[k, 1], out[k, 2] = base[0], base[1], base[2]
+            continue
+        if gap_mm > 0:
             fx = x - j * cw
             fy = y - i * ch
             if fx < g or fx > cw - g or fy < g or fy > ch - g:
-                c = gap_color
-        out[k, 0] = c[0]
-        out[k, 1] = c[1]
-        out[k, 2] = c[2]
+                out[k, 0], out[k, 1], out[k, 2] = gap_color[0], gap_color[1], gap_color[2]
+                continue
+        out[k, 0], out[k, 1], out[k, 2] = pal[i, j, 0], pal[i, j, 1], pal[i, j, 2]
 
 
 @dataclass
@@ -110,14 +110,13 @@ def _stickers(uv, face, pal, cell, grid, gap_mm, gap_color, out):
     for k in range(uv.shape[0]):
         j = np.int64(min(max(np.floor(uv[k, 0] / cell), 0.0), grid - 1.0))
         i = np.int64(min(max(np.floor(uv[k, 1] / cell), 0.0), grid - 1.0))
-        c = pal[np.int64(face[k]), i * grid + j]
         fx = uv[k, 0] - j * cell
         fy = uv[k, 1] - i * cell
         if fx < g or fx > cell - g or fy < g or fy > cell - g:
-            c = gap_color
-        out[k, 0] = c[0]
-        out[k, 1] = c[1]
-        out[k, 2] = c[2]
+            out[k, 0], out[k, 1], out[k, 2] = gap_color[0], gap_color[1], gap_color[2]
+        else:
+            f, q = np.int64(face[k]), i * grid + j
+            out[k, 0], out[k, 1], out[k, 2] = pal[f, q, 0], pal[f, q, 1], pal[f, q, 2]
 
 
 @dataclass
