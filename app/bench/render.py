@@ -94,6 +94,7 @@ def run(args: argparse.Namespace) -> list[dict]:
             t0 = time.perf_counter()
             rig = VirtualRig.from_preset(name, camera_size=MOVING_SIZE, **options)
             precompute_s = time.perf_counter() - t0
+            label = label if rig.moving else "still (nothing moves)"
             rows.append(_row(name, MOVING_SIZE, label, precompute_s, *_time_rig(rig, n)))
     finally:
         cv2.setNumThreads(threads)

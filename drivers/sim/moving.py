@@ -13,6 +13,9 @@ What the full precomputation (`VirtualRig._precompute`) does for every pixel, th
   shape (seen from the projector) are tested against it. The pixels changed in the previous frame
   are restored from the static layer first.
 
+With the rig option render_ahead there are two sets of frame buffers: while the caller uses one
+frame, the next is composed into the other set on a background thread (drivers/sim/rig.py).
+
 `static lit and not shadowed by a moving shape` is exactly the full computation's test
 (min over all shapes of the shadow-ray hit >= the distance to the projector, less a margin), and
 a pixel's nearest hit is the nearest of the static and the moving one, ties to the earlier shape,
@@ -276,23 +279,38 @@ class Frame:
         self.lit = np.zeros(0, bool)  # whether the projector lights it
 
 
-class MovingLayer:
-    """Per-frame composition for a VirtualRig whose scene has moving shapes."""
+class Buffers:
+    """One set of frame buffers (what the rig's frame kernels read) and what last changed in it."""
 
-    def __init__(self, rig: object) -> None:
+    def __init__(self, npx: int) -> None:
+        self.coef = np.zeros((npx, 3), np.float32)
+        self.amb = np.zeros((npx, 3), np.float32)
+        self.map = np.full((npx, 2), -1, np.int16)
+        self.dirty = np.zeros(0, np.int64)  # pixels the frame held here changed over the static layer
+        self.frame = Frame()
+        self.gt: tuple | None = None  # that frame's ground truth, once asked for
+
+    def reset(self, static: StaticLayer) -> None:
+        self.coef[:] = static.coef
+        self.amb[:] = static.amb
+        self.map[:] = static.map
+        self.dirty = np.zeros(0, np.int64)
+        self.frame = Frame()
+        self.gt = None
+
+
+class MovingLayer:
+    """Per-frame composition for a VirtualRig whose scene has moving shapes (`slots` sets of buffers)."""
+
+    def __init__(self, rig: object, slots: int = 1) -> None:
         self.rig = rig
         w, h = rig.geometry.camera_size
         self.w, self.h, self.npx = w, h, w * h
         rays = rig._rays
         self.cam_xy = np.ascontiguousarray(rays[:, :2] / rays[:, 2:3])
         self.cam_tiles = cast.tile_bounds(self.cam_xy, w, h, cast.TILE)
-        self.coef = np.zeros((self.npx, 3), np.float32)
-        self.amb = np.zeros((self.npx, 3), np.float32)
-        self.map = np.full((self.npx, 2), -1, np.int16)
+        self.sets = [Buffers(self.npx) for _ in range(slots)]
         self.static: StaticLayer | None = None
-        self.dirty = np.zeros(0, np.int64)
-        self.frame = Frame()
-        self._gt = None
         o = rig.options
         self._amb3 = np.ascontiguousarray(o.ambient * np.asarray(o.ambient_color), np.float64)
         self._RT = np.ascontiguousarray(np.asarray(rig._R, np.float64).T)
@@ -320,16 +338,13 @@ class MovingLayer:
         surface["sid"] = np.where(sid >= 0, np.asarray([*ids, -1], np.int32)[sid], -1).astype(np.int32)
         self.static = StaticLayer(surface, self.npx, self.w, self.h)
         self._static_boxes = {i: cast.view_box(shapes[i], self.rig._R, self.rig._T) for i in ids}
-        self.coef[:] = self.static.coef
-        self.amb[:] = self.static.amb
-        self.map[:] = self.static.map
-        self.dirty = np.zeros(0, np.int64)
-        self.frame = Frame()
-        self._gt = None
+        for buf in self.sets:
+            buf.reset(self.static)
 
     # ------------------------------------------------------------------ one frame
-    def compose(self, shapes: list[Shape]) -> None:
-        """Bring the frame buffers to these shapes (the static ones as at build_static)."""
+    def compose(self, shapes: list[Shape], slot: int = 0) -> None:
+        """Bring buffer set `slot` to these shapes (the static ones as at build_static). One at a time."""
+        buf = self.sets[slot]
         st = self.static
         rig = self.rig
         moving = [(i, s) for i, s in enumerate(shapes) if s.moves]
@@ -357,18 +372,25 @@ class MovingLayer:
         frame.shadowed = _collect_shadowed(_cat(touched), self._tsh, st.dist, self._mark)
         # the buffers: back to the static layer where the last frame changed them and this one will
         # not rewrite them, then this frame
-        restore = self.dirty[~self._in_frame[self.dirty]]
+        restore = buf.dirty[~self._in_frame[buf.dirty]]
         _flag(pix, self._in_frame, False)
-        _restore(restore, self.coef, self.amb, self.map, st.coef, st.amb, st.map)
-        _darken(frame.shadowed, self.coef, self.map)
+        _restore(restore, buf.coef, buf.amb, buf.map, st.coef, st.amb, st.map)
+        _darken(frame.shadowed, buf.coef, buf.map)
         if len(pix):
-            self._shade(shapes, pix, t, sid, face, frame)
-        self.dirty = np.concatenate([frame.shadowed, pix]) if len(pix) else frame.shadowed
-        self.frame = frame
-        self._gt = None
+            self._shade(shapes, pix, t, sid, face, frame, buf)
+        buf.dirty = np.concatenate([frame.shadowed, frame.pix])
+        buf.frame = frame
+        buf.gt = None
 
     def _shade(
-        self, shapes: list[Shape], pix: np.ndarray, t: np.ndarray, sid: np.ndarray, face: np.ndarray, frame: Frame
+        self,
+        shapes: list[Shape],
+        pix: np.ndarray,
+        t: np.ndarray,
+        sid: np.ndarray,
+        face: np.ndarray,
+        frame: Frame,
+        buf: Buffers,
     ) -> None:
         rig = self.rig
         o = rig.options
@@ -441,15 +463,16 @@ class MovingLayer:
         frame.pix, frame.points, frame.uvp, frame.lit = pix, X, uvp, lit
         _shade_finish(
             n, rig._rays, pix, rho, ks, shin, lvec, dist, cos_i, uvp, lit, rig._d_ref, bool(o.shading),
-            bool(o.specular), float(o.exposure), self._amb3, self.coef, self.amb, self.map,
+            bool(o.specular), float(o.exposure), self._amb3, buf.coef, buf.amb, buf.map,
         )  # fmt: skip
 
     # ------------------------------------------------------------------ ground truth
-    def ground_truth(self) -> tuple[np.ndarray, ...]:
-        """(depth, column, row, lit, points), flat, of the frame last composed."""
-        if self._gt is None:
+    def ground_truth(self, slot: int = 0) -> tuple[np.ndarray, ...]:
+        """(depth, column, row, lit, points), flat, of the frame held in buffer set `slot`."""
+        buf = self.sets[slot]
+        if buf.gt is None:
             depth, col, row, lit, pts = (a.copy() for a in self.static.gt)
-            f = self.frame
+            f = buf.frame
             lit[f.shadowed] = False
             col[f.shadowed] = np.nan
             row[f.shadowed] = np.nan
@@ -459,12 +482,12 @@ class MovingLayer:
             col[f.pix] = np.where(f.lit, f.uvp[:, 0], np.nan)
             row[f.pix] = np.where(f.lit, f.uvp[:, 1], np.nan)
             lit[f.pix] = f.lit
-            self._gt = (depth, col, row, lit, pts)
-        return self._gt
+            buf.gt = (depth, col, row, lit, pts)
+        return buf.gt
 
-    def visible_and_lit(self) -> tuple[bool, bool]:
+    def visible_and_lit(self, slot: int = 0) -> tuple[bool, bool]:
         st = self.static
-        f = self.frame
+        f = self.sets[slot].frame
         visible = bool(np.isfinite(st.t).any() or len(f.pix))
         lit = st.gt[3].copy()
         lit[f.shadowed] = False

@@ -10,6 +10,9 @@ session on the virtual rig runs at 60 Hz (`slscan bench --render`).
 With moving objects (drivers/sim/motion.py) the static shapes' part is precomputed once and each
 frame re-casts only the rays that can meet a moving shape (drivers/sim/moving.py); the result is
 the full precomputation at that frame's pose (`reference_motion=True` runs that instead, for tests).
+With `render_ahead`, the next frame is composed on a background thread as soon as `render` returns
+(its geometry does not depend on the pattern), so a caller that waits between frames (a live
+session on its trigger) pays only for forming the image (~4 ms) on its own thread.
 
 Image formation, per camera pixel with surface albedo rho (RGB), projector light P (RGB):
     P        = black_level + brightness * (pattern / 255) ** projector_gamma   (defocus-blurred)
@@ -72,6 +75,7 @@ class RigOptions:
     rotation_deg_per_frame: float = 0.0  # turn per frame about rotation_axis
     rotation_axis: tuple[float, float, float] = (0.0, -1.0, 0.0)  # direction, camera frame (default: up)
     rotation_center_mm: tuple[float, float, float] | None = None  # a point on the axis; None = moving objects' centre
+    render_ahead: bool = False  # moving scenes: compose the next frame on a background thread (the same images)
     bayer: bool = False  # a single-chip RGGB sensor, demosaiced by OpenCV (the paper used a 3-CCD camera)
 
     def crosstalk_matrix(self) -> np.ndarray:
@@ -170,13 +174,12 @@ class VirtualRig:
         self._prep_lut = (
             options.black_level + options.brightness * (np.arange(256) / 255.0) ** options.projector_gamma
         ).astype(np.float32)
+        self._slot = 0  # the moving rig's buffer set holding the frame last rendered
+        self._ahead: _Ahead | None = None  # the next frame, being composed on a background thread
         if self._moves and not reference_motion:
             from drivers.sim.moving import MovingLayer
 
-            self._layer = MovingLayer(self)
-            self._coef = self._layer.coef.reshape(h, w, 3)
-            self._ambient = self._layer.amb.reshape(h, w, 3)
-            self._map = self._layer.map.reshape(h, w, 2)
+            self._layer = MovingLayer(self, slots=2 if options.render_ahead else 1)
             self._layer.build_static(self._base_shapes)
             self._compose(check=True)
         else:
@@ -266,6 +269,8 @@ class VirtualRig:
             raise bad("rotation_deg_per_frame", "must be a number (degrees per frame)")
         if not triple(o.rotation_axis) or not np.any(np.asarray(o.rotation_axis, np.float64)):
             raise bad("rotation_axis", "must be a direction [x, y, z], not all zero")
+        if not isinstance(o.render_ahead, bool):
+            raise bad("render_ahead", "must be true or false")
         if o.rotation_center_mm is not None and not triple(o.rotation_center_mm):
             raise bad("rotation_center_mm", "must be a point [x, y, z] in mm (or left out: the moving objects' centre)")
         try:
@@ -302,7 +307,7 @@ class VirtualRig:
         """The truth of the frame last rendered (before any render: of frame 0)."""
         with self._lock:
             if self._gt is None:
-                self._gt = self._truth(*self._layer.ground_truth())
+                self._gt = self._truth(*self._layer.ground_truth(self._slot))
             return self._gt
 
     @property
@@ -371,16 +376,31 @@ class VirtualRig:
         if self._layer is None:
             self._precompute(self._current_shapes())
             return
+        self._drop_ahead()
         self._layer.build_static(self._current_shapes())
         self._compose(check=True)
 
     def _compose(self, check: bool = False) -> None:
-        """The moving rig: the buffers of the current motion step; `check`: refuse an impossible set-up
-        as a still scene does (a later frame with nothing in view just shows nothing)."""
-        self._layer.compose(self._current_shapes())
+        """The moving rig: the buffers of the current motion step (composed ahead if they were);
+        `check`: refuse an impossible set-up as a still scene does (a later frame with nothing in
+        view just shows nothing)."""
+        ahead, self._ahead = self._ahead, None
+        if ahead is not None and ahead.step == self._motion_step and not check:
+            ahead.join()
+            self._slot = ahead.slot
+        else:
+            if ahead is not None:
+                ahead.join(raise_error=False)
+            self._slot = (self._slot + 1) % len(self._layer.sets) if not check else self._slot
+            self._layer.compose(self._current_shapes(), self._slot)
+        buf = self._layer.sets[self._slot]
+        w, h = self.geometry.camera_size
+        self._coef = buf.coef.reshape(h, w, 3)
+        self._ambient = buf.amb.reshape(h, w, 3)
+        self._map = buf.map.reshape(h, w, 2)
         self._gt = None
         if check:
-            visible, lit = self._layer.visible_and_lit()
+            visible, lit = self._layer.visible_and_lit(self._slot)
             where = str(self.scene.path or self.scene.name)
             if not visible:
                 raise InputError(f"{where}: impossible set-up: the camera sees no surface of the scene")
@@ -620,7 +640,17 @@ class VirtualRig:
                 else:
                     self._precompute(self._current_shapes())
             self.frame_index += 1
-            return self._form(prepared.linear)
+            image = self._form(prepared.linear)
+            if self._layer is not None and self.options.render_ahead:
+                step = self.frame_index
+                slot = (self._slot + 1) % len(self._layer.sets)
+                self._ahead = _Ahead(self._layer, self._motion.shapes_at(self._base_shapes, step), step, slot)
+            return image
+
+    def _drop_ahead(self) -> None:
+        ahead, self._ahead = self._ahead, None
+        if ahead is not None:
+            ahead.join(raise_error=False)
 
     def _form(self, light: np.ndarray) -> np.ndarray:
         o = self.options
@@ -654,6 +684,28 @@ class VirtualRig:
         if o.bayer:
             out = demosaic_rggb(out)
         return out
+
+
+class _Ahead:
+    """A moving rig's next frame, composed on a background thread into the other buffer set."""
+
+    def __init__(self, layer: object, shapes: list[Shape], step: int, slot: int) -> None:
+        self.step, self.slot = step, slot
+        self.error: BaseException | None = None
+
+        def run() -> None:
+            try:
+                layer.compose(shapes, slot)
+            except BaseException as exc:  # handed to the render that needs this frame
+                self.error = exc
+
+        self.thread = threading.Thread(target=run, name="sim-render-ahead", daemon=True)
+        self.thread.start()
+
+    def join(self, raise_error: bool = True) -> None:
+        self.thread.join()
+        if self.error is not None and raise_error:
+            raise self.error
 
 
 BAYER_RGGB = getattr(cv2, "COLOR_BayerRGGB2RGB", cv2.COLOR_BayerBG2RGB)  # same code, older name

@@ -116,6 +116,7 @@ def assert_same_frames(fast: VirtualRig, ref: VirtualRig, frames: int) -> None:
         ("mixed", {"motion_mm_per_frame": [3, 2, -2]}),
         ("mixed", {"rotation_deg_per_frame": 5, "rotation_axis": [0.3, -1, 0.2], "motion_mm_per_frame": [1, 0, 0]}),
         ("turntable", {"motion_mm_per_frame": [2, 0, -3], "motion_bounce_frames": 2, "rotation_deg_per_frame": 11}),
+        ("turntable", {"render_ahead": True}),  # each next frame composed on a background thread
     ],
 )
 def test_a_moving_frame_equals_the_full_precomputation_at_its_step(scene: str, motion: dict) -> None:
@@ -207,6 +208,7 @@ def test_ideal_keeps_the_scenes_motion_and_a_still_override_stops_it() -> None:
         ("motion_mm_per_frame", [1, 2]),
         ("motion_bounce_frames", -1),
         ("motion_bounce_frames", 2.5),
+        ("render_ahead", "yes"),
     ],
 )
 def test_bad_motion_options_are_named_in_one_line(option: str, value: object) -> None:
