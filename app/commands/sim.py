@@ -20,12 +20,15 @@ examples:
   slscan sim render --scene face --scheme two-shot --out dump_face/
   slscan sim render --scene cube --scheme graycode --ideal --out gray_cube/
   slscan sim render --scene plane --scheme one-shot --set ambient=0.3 --set noise=false --out d/
+  slscan sim render --scene turntable --scheme two-shot --set rotation_deg_per_frame=2 --out r/
+  slscan sim render --scene cube --scheme two-shot --set "motion_mm_per_frame=[8, 0, 0]" --out m/
 
 Writes a frame dump (format v1, with the rig's true calibration.yaml and depth_range_mm) and
 DUMP/ground_truth/: depth.tiff (float32 Z mm, 0 = no surface), column.tiff and row.tiff
-(float32 projector coordinates, NaN where not lit), lit.png (255 = visible and lit). With
-motion (--set motion_mm_per_frame=[x,y,z]) these are the last frame's, and
-DUMP/ground_truth/frames/NNNNNN/ holds each frame's.
+(float32 projector coordinates, NaN where not lit), lit.png (255 = visible and lit). On a moving
+scene (objects marked `moves`, with motion_mm_per_frame, rotation_deg_per_frame, ...: see
+drivers/sim/motion.py) these are the last frame's, and DUMP/ground_truth/frames/NNNNNN/ holds each
+frame's.
 """
 
 
@@ -120,7 +123,7 @@ def run_render(args: argparse.Namespace) -> int:
     patterns = make_patterns(args.scheme, rig.projector_size, **options)
     prepared = [rig.prepare(img) for img in patterns.images]
     extra = {"source": f"slscan sim render --scene {rig.scene.name}"}
-    moving = any(rig.options.motion_mm_per_frame)
+    moving = rig.moving
     gt_dir = out / "ground_truth"
     with DumpWriter(out, patterns, rig.calibration, rig.depth_range_mm, extra=extra) as writer:
         frame_ns = round(1e9 / 60)

@@ -1,11 +1,18 @@
 """The virtual rig: a ray-cast scene seen by a simulated camera under a simulated projector.
 
-Per scene (and per board pose / motion step) everything that does not depend on the pattern is
+Per scene (and per board pose) everything that does not depend on the pattern is
 precomputed: camera ray hits, normals, reflectance (supersampled on calibration boards),
 projector coordinates, projector shadows, shading and the ambient image. A frame is then three
 passes (drivers/sim/kernels.py: nearest-pixel pattern lookup + reflectance + ambient + crosstalk;
 OpenCV's PSF blur; noise + clipping + response LUT): ~4 ms at 640x480 on one core, so a live
 session on the virtual rig runs at 60 Hz (`slscan bench --render`).
+
+With moving objects (drivers/sim/motion.py) the static shapes' part is precomputed once and each
+frame re-casts only the rays that can meet a moving shape (drivers/sim/moving.py); the result is
+the full precomputation at that frame's pose (`reference_motion=True` runs that instead, for tests).
+With `render_ahead`, the next frame is composed on a background thread as soon as `render` returns
+(its geometry does not depend on the pattern), so a caller that waits between frames (a live
+session on its trigger) pays only for forming the image (~4 ms) on its own thread.
 
 Image formation, per camera pixel with surface albedo rho (RGB), projector light P (RGB):
     P        = black_level + brightness * (pattern / 255) ** projector_gamma   (defocus-blurred)
@@ -28,6 +35,7 @@ import numpy as np
 from core.calibration import Calibration
 from core.errors import InputError
 from drivers.sim.kernels import affine3, light_to_linear, sensor, warm_up
+from drivers.sim.motion import MOTION_KEYS, Motion
 from drivers.sim.optics import Geometry, camera_rays, project
 from drivers.sim.scene import Board, Scene, SceneError, load_scene
 from drivers.sim.shapes import Shape
@@ -61,7 +69,13 @@ class RigOptions:
     shading: bool = True  # cos(incidence) and 1/d^2 falloff of the projector light
     specular: bool = True
     supersample: int = 4  # per axis, reflectance of anti-aliased (board) surfaces
-    motion_mm_per_frame: tuple[float, float, float] = (0.0, 0.0, 0.0)  # objects marked `moves`
+    # motion of the objects marked `moves` (drivers/sim/motion.py); not effects: `ideal` keeps them
+    motion_mm_per_frame: tuple[float, float, float] = (0.0, 0.0, 0.0)  # translation per frame, camera mm
+    motion_bounce_frames: int = 0  # > 0: the translation turns back after this many frames, and again
+    rotation_deg_per_frame: float = 0.0  # turn per frame about rotation_axis
+    rotation_axis: tuple[float, float, float] = (0.0, -1.0, 0.0)  # direction, camera frame (default: up)
+    rotation_center_mm: tuple[float, float, float] | None = None  # a point on the axis; None = moving objects' centre
+    render_ahead: bool = False  # moving scenes: compose the next frame on a background thread (the same images)
     bayer: bool = False  # a single-chip RGGB sensor, demosaiced by OpenCV (the paper used a 3-CCD camera)
 
     def crosstalk_matrix(self) -> np.ndarray:
@@ -120,7 +134,7 @@ class PreparedPattern:
 class VirtualRig:
     """One scene, one camera, one projector; `render(pattern)` returns the camera image."""
 
-    def __init__(self, scene: Scene, geometry: Geometry, options: RigOptions) -> None:
+    def __init__(self, scene: Scene, geometry: Geometry, options: RigOptions, reference_motion: bool = False) -> None:
         self.scene = scene
         self.geometry = geometry
         self.options = options
@@ -146,6 +160,13 @@ class VirtualRig:
         self._lock = threading.RLock()  # a render never sees half of a re-precomputation
         self.frame_index = 0  # renders so far (drives motion)
         self._motion_step = 0
+        self._motion = Motion.from_options(options, self._base_shapes)
+        self._moves = self._motion.active and any(s.moves for s in self._base_shapes)
+        wp, hp = geometry.projector_size
+        # projector-normalised bound beyond which a point cannot be in the projector image
+        self._lim = np.abs(np.linalg.solve(self._Kp, [[-0.5, wp - 0.5], [-0.5, hp - 0.5], [1, 1]])[:2]).max() * 1.5
+        self._layer = None  # the moving rig's per-frame composition (drivers/sim/moving.py)
+        self._gt: GroundTruth | None = None
         self._black: PreparedPattern | None = None
         self._mix32 = np.ascontiguousarray(self._crosstalk, np.float32)
         self._buf: np.ndarray | None = None
@@ -153,7 +174,16 @@ class VirtualRig:
         self._prep_lut = (
             options.black_level + options.brightness * (np.arange(256) / 255.0) ** options.projector_gamma
         ).astype(np.float32)
-        self._precompute(self._base_shapes)
+        self._slot = 0  # the moving rig's buffer set holding the frame last rendered
+        self._ahead: _Ahead | None = None  # the next frame, being composed on a background thread
+        if self._moves and not reference_motion:
+            from drivers.sim.moving import MovingLayer
+
+            self._layer = MovingLayer(self, slots=2 if options.render_ahead else 1)
+            self._layer.build_static(self._base_shapes)
+            self._compose(check=True)
+        else:
+            self._precompute(self._base_shapes)
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -168,16 +198,19 @@ class VirtualRig:
         return cls.from_scene(scene, ideal=ideal, **overrides)
 
     @classmethod
-    def from_scene(cls, scene: Scene, ideal: bool = False, **overrides: object) -> VirtualRig:
+    def from_scene(
+        cls, scene: Scene, ideal: bool = False, reference_motion: bool = False, **overrides: object
+    ) -> VirtualRig:
+        """As from_preset. reference_motion=True: moving frames by the full re-precomputation (slow; tests)."""
         where = str(scene.path or scene.name)
         opts: dict = {}
         if ideal:
             opts.update(IDEAL)
-        else:
-            for key, value in scene.effects.items():
-                if key not in OPTION_KEYS:
-                    known = ", ".join(sorted(OPTION_KEYS))
-                    raise SceneError(f"{where}: field 'effects.{key}' is unknown (known: {known})")
+        for key, value in scene.effects.items():
+            if key not in OPTION_KEYS:
+                known = ", ".join(sorted(OPTION_KEYS))
+                raise SceneError(f"{where}: field 'effects.{key}' is unknown (known: {known})")
+            if not ideal or key in MOTION_KEYS:  # ideal drops the effects, not the scene's motion
                 opts[key] = value
         geo: dict = dict(scene.geometry)
         for key, value in overrides.items():
@@ -194,7 +227,7 @@ class VirtualRig:
         for key, value in list(geo.items()):
             if isinstance(value, list):
                 geo[key] = tuple(value)
-        for key in ("ambient_color", "motion_mm_per_frame"):
+        for key in ("ambient_color", "motion_mm_per_frame", "rotation_axis", "rotation_center_mm"):
             if key in opts and isinstance(opts[key], list):
                 opts[key] = tuple(opts[key])
         try:
@@ -202,7 +235,7 @@ class VirtualRig:
             options = RigOptions(**opts)
         except TypeError as exc:
             raise InputError(f"{where}: bad rig option ({exc})") from None
-        return cls(scene, geometry, options)
+        return cls(scene, geometry, options, reference_motion=reference_motion)
 
     def _check_options(self, where: str) -> None:
         o = self.options
@@ -222,8 +255,24 @@ class VirtualRig:
             raise bad("supersample", "must be a whole number 1..16")
         if len(o.ambient_color) != 3 or min(o.ambient_color) < 0:
             raise bad("ambient_color", "must be [r, g, b] >= 0")
-        if len(o.motion_mm_per_frame) != 3:
+
+        def triple(v: object) -> bool:
+            return isinstance(v, list | tuple) and len(v) == 3 and all(_finite(x) for x in v)
+
+        if not triple(o.motion_mm_per_frame):
             raise bad("motion_mm_per_frame", "must be [x, y, z] mm")
+        if not (isinstance(o.motion_bounce_frames, int) and not isinstance(o.motion_bounce_frames, bool)):
+            raise bad("motion_bounce_frames", "must be a whole number of frames >= 0 (0 = never turn back)")
+        if o.motion_bounce_frames < 0:
+            raise bad("motion_bounce_frames", "must be a whole number of frames >= 0 (0 = never turn back)")
+        if not _finite(o.rotation_deg_per_frame):
+            raise bad("rotation_deg_per_frame", "must be a number (degrees per frame)")
+        if not triple(o.rotation_axis) or not np.any(np.asarray(o.rotation_axis, np.float64)):
+            raise bad("rotation_axis", "must be a direction [x, y, z], not all zero")
+        if not isinstance(o.render_ahead, bool):
+            raise bad("render_ahead", "must be true or false")
+        if o.rotation_center_mm is not None and not triple(o.rotation_center_mm):
+            raise bad("rotation_center_mm", "must be a point [x, y, z] in mm (or left out: the moving objects' centre)")
         try:
             M = o.crosstalk_matrix()
         except (ValueError, TypeError):
@@ -255,7 +304,16 @@ class VirtualRig:
 
     @property
     def ground_truth(self) -> GroundTruth:
-        return self._gt
+        """The truth of the frame last rendered (before any render: of frame 0)."""
+        with self._lock:
+            if self._gt is None:
+                self._gt = self._truth(*self._layer.ground_truth(self._slot))
+            return self._gt
+
+    @property
+    def moving(self) -> bool:
+        """Whether frames differ by more than noise: objects marked `moves` and a motion option set."""
+        return self._moves
 
     @property
     def board(self) -> Board | None:
@@ -292,10 +350,12 @@ class VirtualRig:
             self._base_shapes[i] = self.scene.shapes[i] = shape
             board.rvec, board.tvec = rvec, tvec
             try:
-                self._precompute(self._current_shapes())
+                self._rebuild()
             except InputError:  # e.g. posed out of view: keep the previous pose, say why
                 self._base_shapes[i] = self.scene.shapes[i] = old[0]
                 board.rvec, board.tvec = old[1], old[2]
+                if self._layer is not None:  # the full precomputation raised before changing anything
+                    self._rebuild()
                 raise
 
     def board_corners_image(self) -> np.ndarray:
@@ -309,10 +369,43 @@ class VirtualRig:
 
     # ------------------------------------------------------------------ precomputation
     def _current_shapes(self) -> list[Shape]:
-        v = np.asarray(self.options.motion_mm_per_frame, np.float64)
-        if not np.any(v) or self._motion_step == 0:
-            return self._base_shapes
-        return [s.translated(v * self._motion_step) if s.moves else s for s in self._base_shapes]
+        return self._motion.shapes_at(self._base_shapes, self._motion_step)
+
+    def _rebuild(self) -> None:
+        """After a static shape changed (a board pose): the whole precomputation again."""
+        if self._layer is None:
+            self._precompute(self._current_shapes())
+            return
+        self._drop_ahead()
+        self._layer.build_static(self._current_shapes())
+        self._compose(check=True)
+
+    def _compose(self, check: bool = False) -> None:
+        """The moving rig: the buffers of the current motion step (composed ahead if they were);
+        `check`: refuse an impossible set-up as a still scene does (a later frame with nothing in
+        view just shows nothing)."""
+        ahead, self._ahead = self._ahead, None
+        if ahead is not None and ahead.step == self._motion_step and not check:
+            ahead.join()
+            self._slot = ahead.slot
+        else:
+            if ahead is not None:
+                ahead.join(raise_error=False)
+            self._slot = (self._slot + 1) % len(self._layer.sets) if not check else self._slot
+            self._layer.compose(self._current_shapes(), self._slot)
+        buf = self._layer.sets[self._slot]
+        w, h = self.geometry.camera_size
+        self._coef = buf.coef.reshape(h, w, 3)
+        self._ambient = buf.amb.reshape(h, w, 3)
+        self._map = buf.map.reshape(h, w, 2)
+        self._gt = None
+        if check:
+            visible, lit = self._layer.visible_and_lit(self._slot)
+            where = str(self.scene.path or self.scene.name)
+            if not visible:
+                raise InputError(f"{where}: impossible set-up: the camera sees no surface of the scene")
+            if not lit:
+                raise InputError(f"{where}: impossible set-up: the projector lights nothing the camera sees")
 
     def _cast(self, shapes: list[Shape], o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         t_best = np.full(len(d), np.inf)
@@ -327,6 +420,32 @@ class VirtualRig:
         return t_best, sid, face
 
     def _precompute(self, shapes: list[Shape]) -> None:
+        """Everything that does not depend on the pattern, for these shapes (the full computation)."""
+        w, h = self.geometry.camera_size
+        where = str(self.scene.path or self.scene.name)
+        surf = self._surface(shapes)
+        if surf is None:
+            raise InputError(f"{where}: impossible set-up: the camera sees no surface of the scene")
+        if not surf["lit_idx"].size:
+            raise InputError(f"{where}: impossible set-up: the projector lights nothing the camera sees")
+        self._coef = surf["coef_img"].reshape(h, w, 3)
+        self._ambient = surf["amb_img"].reshape(h, w, 3)
+        self._map = surf["maps"].reshape(h, w, 2)
+        self._gt = self._truth(*surf["gt"])
+
+    def _truth(self, *flat: np.ndarray) -> GroundTruth:
+        """GroundTruth from the flat per-pixel (depth, column, row, lit, points)."""
+        w, h = self.geometry.camera_size
+        depth, col, row, lit, pts = flat
+        return GroundTruth(*(a.reshape(h, w) for a in (depth, col, row, lit)), pts.reshape(h, w, 3))
+
+    def _surface(self, shapes: list[Shape], shadows: bool = False) -> dict | None:
+        """Per-pixel products of these shapes: frame buffers, ground truth (flat) and the camera hits.
+
+        None when the camera sees none of them (unless `shadows`: then an empty layer). With
+        `shadows`, also each lit pixel's distance, shadow-ray direction and projector coordinate
+        (what the moving rig needs to shadow it later).
+        """
         o = self.options
         w, h = self.geometry.camera_size
         wp, hp = self.geometry.projector_size
@@ -334,9 +453,28 @@ class VirtualRig:
         d = self._rays
         t, sid, face = self._cast(shapes, np.zeros(3), d)
         hit = np.isfinite(t)
-        where = str(self.scene.path or self.scene.name)
         if not hit.any():
-            raise InputError(f"{where}: impossible set-up: the camera sees no surface of the scene")
+            if not shadows:
+                return None
+            z3 = np.zeros((0, 3))
+            return {
+                "t": t,
+                "sid": sid,
+                "coef_img": np.zeros((npx, 3), np.float32),
+                "amb_img": np.zeros((npx, 3), np.float32),
+                "maps": np.full((npx, 2), -1, np.int16),
+                "gt": (
+                    np.zeros(npx, np.float32),
+                    np.full(npx, np.nan, np.float32),
+                    np.full(npx, np.nan, np.float32),
+                    np.zeros(npx, bool),
+                    np.zeros((npx, 3), np.float32),
+                ),
+                "lit_idx": np.zeros(0, np.int64),
+                "lit_dist": np.zeros(0),
+                "lit_neg_lvec": z3,
+                "lit_xn": np.zeros((0, 2)),
+            }
         idx = np.nonzero(hit)[0]
         X = d[idx] * t[idx, None]
         n = np.zeros((len(idx), 3))
@@ -364,7 +502,7 @@ class VirtualRig:
         Xp = affine3(X, self._R.T, after=self._T)
         with np.errstate(divide="ignore", invalid="ignore"):
             xn = Xp[:, :2] / Xp[:, 2:3]
-        lim = np.abs(np.linalg.solve(self._Kp, [[-0.5, wp - 0.5], [-0.5, hp - 0.5], [1, 1]])[:2]).max() * 1.5
+        lim = self._lim
         in_front = (Xp[:, 2] > 1.0) & np.all(np.abs(xn) < lim, axis=1)
         uvp = np.full((len(idx), 2), np.nan)
         if in_front.any():
@@ -391,11 +529,6 @@ class VirtualRig:
         maps = np.full((npx, 2), -1, np.int16)
         lit_idx = idx[lit]
         maps[lit_idx] = np.floor(uvp[lit] + 0.5).astype(np.int16)
-        if not lit.any():
-            raise InputError(f"{where}: impossible set-up: the projector lights nothing the camera sees")
-        self._coef = coef_img.reshape(h, w, 3)
-        self._ambient = amb_img.reshape(h, w, 3)
-        self._map = maps.reshape(h, w, 2)
         # ground truth
         depth = np.zeros(npx, np.float32)
         depth[idx] = X[:, 2]
@@ -407,9 +540,20 @@ class VirtualRig:
         row[lit_idx] = uvp[lit, 1]
         lit_mask = np.zeros(npx, bool)
         lit_mask[lit_idx] = True
-        self._gt = GroundTruth(
-            depth.reshape(h, w), col.reshape(h, w), row.reshape(h, w), lit_mask.reshape(h, w), pts.reshape(h, w, 3)
-        )
+        out = {
+            "t": t,
+            "sid": sid,
+            "coef_img": coef_img,
+            "amb_img": amb_img,
+            "maps": maps,
+            "gt": (depth, col, row, lit_mask, pts),
+            "lit_idx": lit_idx,
+        }
+        if shadows:
+            out["lit_dist"] = dist[lit]
+            out["lit_neg_lvec"] = -lvec[lit]
+            out["lit_xn"] = xn[lit]
+        return out
 
     def _albedo(self, s: Shape, pix: np.ndarray, X: np.ndarray, n: np.ndarray, face: np.ndarray) -> np.ndarray:
         ss = self.options.supersample
@@ -482,17 +626,31 @@ class VirtualRig:
         """Camera image (H, W, 3) RGB uint8 (uint16 if 16-bit) of the scene under `pattern`.
 
         None means the projector is dark. Noise differs per call and is deterministic per seed.
-        With motion, each call advances the moving objects by one frame and updates ground truth.
+        With motion, call n (from 0) shows the moving objects at frame n, and `ground_truth`
+        is then that frame's.
         """
         prepared = pattern if isinstance(pattern, PreparedPattern) else None
         if prepared is None:
             prepared = self.black() if pattern is None else self.prepare(pattern)
         with self._lock:
-            if any(self.options.motion_mm_per_frame) and self.frame_index > 0:
+            if self._moves and self.frame_index > 0:
                 self._motion_step = self.frame_index
-                self._precompute(self._current_shapes())
+                if self._layer is not None:
+                    self._compose()
+                else:
+                    self._precompute(self._current_shapes())
             self.frame_index += 1
-            return self._form(prepared.linear)
+            image = self._form(prepared.linear)
+            if self._layer is not None and self.options.render_ahead:
+                step = self.frame_index
+                slot = (self._slot + 1) % len(self._layer.sets)
+                self._ahead = _Ahead(self._layer, self._motion.shapes_at(self._base_shapes, step), step, slot)
+            return image
+
+    def _drop_ahead(self) -> None:
+        ahead, self._ahead = self._ahead, None
+        if ahead is not None:
+            ahead.join(raise_error=False)
 
     def _form(self, light: np.ndarray) -> np.ndarray:
         o = self.options
@@ -528,6 +686,28 @@ class VirtualRig:
         return out
 
 
+class _Ahead:
+    """A moving rig's next frame, composed on a background thread into the other buffer set."""
+
+    def __init__(self, layer: object, shapes: list[Shape], step: int, slot: int) -> None:
+        self.step, self.slot = step, slot
+        self.error: BaseException | None = None
+
+        def run() -> None:
+            try:
+                layer.compose(shapes, slot)
+            except BaseException as exc:  # handed to the render that needs this frame
+                self.error = exc
+
+        self.thread = threading.Thread(target=run, name="sim-render-ahead", daemon=True)
+        self.thread.start()
+
+    def join(self, raise_error: bool = True) -> None:
+        self.thread.join()
+        if self.error is not None and raise_error:
+            raise self.error
+
+
 BAYER_RGGB = getattr(cv2, "COLOR_BayerRGGB2RGB", cv2.COLOR_BayerBG2RGB)  # same code, older name
 
 
@@ -539,6 +719,10 @@ def demosaic_rggb(img: np.ndarray) -> np.ndarray:
     raw[1::2, 0::2] = img[1::2, 0::2, 1]
     raw[1::2, 1::2] = img[1::2, 1::2, 2]
     return cv2.cvtColor(raw, BAYER_RGGB)
+
+
+def _finite(v: object) -> bool:
+    return isinstance(v, int | float | np.integer | np.floating) and not isinstance(v, bool) and bool(np.isfinite(v))
 
 
 def _int_pair(v: object, key: str, where: str) -> tuple[int, int]:

@@ -10,10 +10,13 @@ A preset file (`config/scenes/NAME.yaml`):
       - {type: plane, center: [x, y, z], size: [w, h], color: [r, g, b], rotation_deg: [..]}
       - {type: box, center: .., size: [w, h, d]}       - {type: sphere, center: .., radius: r}
       - {type: cylinder, center: .., radius: r, height: h}
+      - {type: ellipsoid, center: .., semi_axes: [a, b, c]}   # closed; a, b, c along local x, y, z
       - {type: relief, center: .., semi_axes: [a, b], depth: d, bumps: [[x, y, sx, sy, amp], ..]}
       - {type: board, board: {type: checkerboard|charuco, rows, cols, square_mm, ..},
          pose: {rvec: [..] (radians, OpenCV), tvec: [..] (mm)}}
     Optional per object: name, specular, shininess, moves, texture: {type: patches|stickers|bands, ..}.
+    Objects with `moves: true` follow the rig's motion options (motion_mm_per_frame,
+    rotation_deg_per_frame, ...: drivers/sim/motion.py), given like any option under `effects`.
 
 Every error names the file and the field.
 """
@@ -31,7 +34,7 @@ import yaml
 from core.errors import InputError
 from core.yamlfile import load_yaml_mapping
 from drivers.sim.optics import Geometry
-from drivers.sim.shapes import Box, Cylinder, Material, Rectangle, Relief, Shape, Sphere
+from drivers.sim.shapes import Box, Cylinder, Ellipsoid, Material, Rectangle, Relief, Shape, Sphere
 from drivers.sim.textures import Bands, Charuco, Checkerboard, Patches, Stickers, Texture, Uniform
 
 SCENES_DIR = Path(__file__).resolve().parent.parent.parent / "config" / "scenes"
@@ -294,6 +297,9 @@ def _shape(kind: str, obj: dict, w: _Where) -> Shape:
     if kind == "cylinder":
         tex = _texture(obj, w, kind, None)
         return Cylinder(**common, texture=tex, radius=w.pos(obj, "radius"), height=w.pos(obj, "height"))
+    if kind == "ellipsoid":
+        axes3 = w.vec(obj, "semi_axes", 3, positive=True)
+        return Ellipsoid(**common, texture=_texture(obj, w, kind, None), semi_axes=tuple(float(x) for x in axes3))
     if kind == "relief":
         axes = w.vec(obj, "semi_axes", 2, positive=True)
         bumps = w.opt(obj, "bumps", list, [])
@@ -309,7 +315,7 @@ def _shape(kind: str, obj: dict, w: _Where) -> Shape:
             depth=w.pos(obj, "depth"),
             bumps=tuple(parsed),
         )
-    raise w.err("type", f"is {kind!r}; expected plane, box, sphere, cylinder, relief or board")
+    raise w.err("type", f"is {kind!r}; expected plane, box, sphere, cylinder, ellipsoid, relief or board")
 
 
 BOARD_TYPES = ("checkerboard", "charuco")

@@ -10,6 +10,7 @@ local -z (the camera, when unrotated); the cylinder's axis is local y (image "do
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numba
 import numpy as np
@@ -35,8 +36,10 @@ class Shape:
     material: Material
     texture: Texture = field(default_factory=lambda: Uniform())
     name: str = ""
-    moves: bool = False  # follows the rig's motion_mm_per_frame
+    moves: bool = False  # follows the rig's motion (drivers/sim/motion.py)
     antialias: bool = False  # supersample the texture (calibration boards)
+    # convex (or flat): a segment from outside to a surface point facing it meets no other point of it
+    convex: ClassVar[bool] = False
 
     # -- frames
     def to_local(self, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -66,6 +69,8 @@ class Shape:
         return xl[:, :2]
 
     def albedo(self, X: np.ndarray, face: np.ndarray) -> np.ndarray:
+        if isinstance(self.texture, Uniform):  # one colour: no texture coordinates to compute
+            return np.broadcast_to(np.asarray(self.material.color, np.float64), (len(X), 3)).copy()
         return self.texture.color(self.uv(X, face), face, self.material.color)
 
     def translated(self, offset: np.ndarray) -> Shape:
@@ -74,6 +79,19 @@ class Shape:
         s = copy.copy(self)
         s.c = self.c + np.asarray(offset, np.float64)
         return s
+
+    def posed(self, R: np.ndarray, c: np.ndarray) -> Shape:
+        """A copy at another pose (local -> camera: X = R x + c); caches of local geometry are shared."""
+        import copy
+
+        s = copy.copy(self)
+        s.R = np.asarray(R, np.float64)
+        s.c = np.asarray(c, np.float64)
+        return s
+
+    def local_bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(lo, hi): a box in the local frame holding the whole surface (None: unknown, never culled)."""
+        return None
 
 
 def _first_positive(*ts: np.ndarray) -> np.ndarray:
@@ -88,6 +106,7 @@ def _first_positive(*ts: np.ndarray) -> np.ndarray:
 class Rectangle(Shape):
     """A flat rectangle in local z = 0 covering [x0, x1] x [y0, y1] (mm)."""
 
+    convex: ClassVar[bool] = True
     extent: tuple[float, float, float, float] = (-100.0, 100.0, -100.0, 100.0)
 
     def intersect(self, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -104,11 +123,16 @@ class Rectangle(Shape):
     def normal(self, X: np.ndarray, face: np.ndarray) -> np.ndarray:
         return np.broadcast_to(self.normal_to_camera(np.array([0.0, 0.0, -1.0])), X.shape).copy()
 
+    def local_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        x0, x1, y0, y1 = self.extent
+        return np.array([x0, y0, 0.0]), np.array([x1, y1, 0.0])
+
 
 @dataclass
 class Box(Shape):
     """An oriented box with half sizes `half` (mm); faces 0..5 = -x, +x, -y, +y, -z, +z."""
 
+    convex: ClassVar[bool] = True
     half: tuple[float, float, float] = (50.0, 50.0, 50.0)
 
     def intersect(self, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -135,6 +159,10 @@ class Box(Shape):
         face = (2 * axis + (coord > 0)).astype(np.int8)
         return np.where(hit, t, INF), face
 
+    def local_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        h = np.asarray(self.half, np.float64)
+        return -h, h
+
     def normal(self, X: np.ndarray, face: np.ndarray) -> np.ndarray:
         n = np.zeros((len(face), 3))
         axis = face // 2
@@ -152,6 +180,7 @@ class Box(Shape):
 
 @dataclass
 class Sphere(Shape):
+    convex: ClassVar[bool] = True
     radius: float = 50.0
 
     def intersect(self, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -168,6 +197,10 @@ class Sphere(Shape):
     def normal(self, X: np.ndarray, face: np.ndarray) -> np.ndarray:
         return (X - self.c) / self.radius
 
+    def local_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        r = np.full(3, float(self.radius))
+        return -r, r
+
     def uv(self, X: np.ndarray, face: np.ndarray) -> np.ndarray:
         xl = self.point_to_local(X)
         return np.stack([np.arctan2(xl[:, 0], -xl[:, 2]) * self.radius, xl[:, 1]], axis=1)
@@ -177,6 +210,7 @@ class Sphere(Shape):
 class Cylinder(Shape):
     """A capped cylinder around local y, from y = -height/2 to +height/2."""
 
+    convex: ClassVar[bool] = True
     radius: float = 40.0
     height: float = 120.0
 
@@ -207,6 +241,10 @@ class Cylinder(Shape):
         face = np.where(np.abs(np.abs(y) - hh) < 1e-6 * max(1.0, hh), 1, 0).astype(np.int8)
         return t, face
 
+    def local_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        r, hh = float(self.radius), self.height / 2
+        return np.array([-r, -hh, -r]), np.array([r, hh, r])
+
     def normal(self, X: np.ndarray, face: np.ndarray) -> np.ndarray:
         xl = self.point_to_local(X)
         side = np.stack([xl[:, 0], np.zeros(len(xl)), xl[:, 2]], axis=1) / self.radius
@@ -216,6 +254,50 @@ class Cylinder(Shape):
     def uv(self, X: np.ndarray, face: np.ndarray) -> np.ndarray:
         xl = self.point_to_local(X)
         return np.stack([np.arctan2(xl[:, 0], -xl[:, 2]) * self.radius, xl[:, 1] + self.height / 2], axis=1)
+
+
+@dataclass
+class Ellipsoid(Shape):
+    """A closed ellipsoid with local semi-axes (a, b, c) along x, y (image down), z (mm).
+
+    Texture coordinates: the arc along the equator about local y (longitude times the mean of
+    a and c), from 0 at the back (local +z) round to 2 pi (a + c) / 2, the front (local -z)
+    half-way; and the height from the bottom (local y + b).
+    """
+
+    convex: ClassVar[bool] = True
+    semi_axes: tuple[float, float, float] = (50.0, 60.0, 50.0)
+
+    def intersect(self, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        ol, dl = self.to_local(o, d)
+        ol = np.broadcast_to(ol, dl.shape)
+        ia, ib, ic = (1.0 / float(x) for x in self.semi_axes)  # drivers/sim/cast.py: the same products
+        ox, oy, oz = ol[:, 0] * ia, ol[:, 1] * ib, ol[:, 2] * ic
+        dx, dy, dz = dl[:, 0] * ia, dl[:, 1] * ib, dl[:, 2] * ic
+        qa = dx * dx + dy * dy + dz * dz
+        qb = ox * dx + oy * dy + oz * dz
+        qc = ox * ox + oy * oy + oz * oz - 1.0
+        disc = qb * qb - qa * qc
+        with np.errstate(invalid="ignore", divide="ignore"):
+            s = np.sqrt(disc)
+            t_in = (-qb - s) / qa
+            t_out = (-qb + s) / qa
+        t = _first_positive(np.where(disc >= 0, t_in, -1.0), np.where(disc >= 0, t_out, -1.0))
+        return t, np.zeros(len(t), np.int8)
+
+    def normal(self, X: np.ndarray, face: np.ndarray) -> np.ndarray:
+        out = np.empty((len(X), 3))
+        _ellipsoid_normals(np.ascontiguousarray(X, np.float64), self.R, self.c, np.asarray(self.semi_axes), out)
+        return out
+
+    def uv(self, X: np.ndarray, face: np.ndarray) -> np.ndarray:
+        out = np.empty((len(X), 2))
+        _ellipsoid_uv(np.ascontiguousarray(X, np.float64), self.R, self.c, np.asarray(self.semi_axes), out)
+        return out
+
+    def local_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        h = np.asarray(self.semi_axes, np.float64)
+        return -h, h
 
 
 @dataclass
@@ -258,6 +340,10 @@ class Relief(Shape):
             x, y = np.meshgrid(np.linspace(-a, a, 301), np.linspace(-b, b, 301))
             self._hmax_cache = float(self.height(x, y).max()) + 2.0
         return self._hmax_cache
+
+    def local_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        a, b = self.semi_axes
+        return np.array([-a, -b, -self._hmax()]), np.array([a, b, 0.0])
 
     def intersect(self, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         ol, dl = self.to_local(o, d)
@@ -309,6 +395,67 @@ class Relief(Shape):
         n = np.stack([-hx, -hy, -np.ones_like(hx)], axis=1)
         n /= np.linalg.norm(n, axis=1, keepdims=True)
         return self.normal_to_camera(n)
+
+
+@numba.njit(cache=True, nogil=True)
+def _ellipsoid_normals(X: np.ndarray, R: np.ndarray, c: np.ndarray, axes: np.ndarray, out: np.ndarray) -> None:
+    """Outward unit normals (camera frame) at points X on the ellipsoid (R, c, semi-axes)."""
+    a2, b2, c2 = axes[0] * axes[0], axes[1] * axes[1], axes[2] * axes[2]
+    for i in range(X.shape[0]):
+        p0, p1, p2 = X[i, 0] - c[0], X[i, 1] - c[1], X[i, 2] - c[2]
+        # the gradient of the local quadric, then back to the camera frame
+        g0 = (p0 * R[0, 0] + p1 * R[1, 0] + p2 * R[2, 0]) / a2
+        g1 = (p0 * R[0, 1] + p1 * R[1, 1] + p2 * R[2, 1]) / b2
+        g2 = (p0 * R[0, 2] + p1 * R[1, 2] + p2 * R[2, 2]) / c2
+        s = 1.0 / np.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+        for k in range(3):
+            out[i, k] = (R[k, 0] * g0 + R[k, 1] * g1 + R[k, 2] * g2) * s
+
+
+_ATAN = (  # atan(z) = z * P(z^2) on |z| <= tan(pi / 8), least squares: error < 2e-11 rad
+    0.99999999988799326,
+    -0.33333330714193798,
+    0.19999823291876273,
+    -0.1428045216819375,
+    0.11030125646498276,
+    -0.084108850160481738,
+    0.046312861283977137,
+)
+
+
+@numba.njit(cache=True, nogil=True)
+def fast_atan2(y: float, x: float) -> float:
+    """np.arctan2(y, x) to 2e-11 rad, several times faster (texture coordinates need no more)."""
+    ax, ay = abs(x), abs(y)
+    big = max(ax, ay)
+    if big == 0.0:
+        return 0.0
+    a = min(ax, ay) / big
+    base = 0.0
+    if a > 0.41421356237309503:  # tan(pi / 8): atan(a) = pi / 4 + atan((a - 1) / (a + 1))
+        a = (a - 1.0) / (a + 1.0)
+        base = 0.78539816339744831
+    z2 = a * a
+    c = _ATAN
+    r = base + a * (c[0] + z2 * (c[1] + z2 * (c[2] + z2 * (c[3] + z2 * (c[4] + z2 * (c[5] + z2 * c[6]))))))
+    if ay > ax:
+        r = 1.5707963267948966 - r
+    if x < 0:
+        r = 3.141592653589793 - r
+    return np.copysign(r, y)  # the sign of y, as arctan2 (-0.0 included)
+
+
+@numba.njit(cache=True, nogil=True)
+def _ellipsoid_uv(X: np.ndarray, R: np.ndarray, c: np.ndarray, axes: np.ndarray, out: np.ndarray) -> None:
+    """Ellipsoid.uv: (longitude about local y from the back, + pi) * (a + c) / 2, and local y + b."""
+    half_girth = 0.5 * (axes[0] + axes[2])
+    for i in range(X.shape[0]):
+        p0, p1, p2 = X[i, 0] - c[0], X[i, 1] - c[1], X[i, 2] - c[2]
+        x = p0 * R[0, 0] + p1 * R[1, 0] + p2 * R[2, 0]
+        y = p0 * R[0, 1] + p1 * R[1, 1] + p2 * R[2, 1]
+        z = p0 * R[0, 2] + p1 * R[1, 2] + p2 * R[2, 2]
+        out[i, 0] = (fast_atan2(x, -z) + np.pi) * half_girth
+        out[i, 1] = y + axes[1]
 
 
 @numba.njit(cache=True)
@@ -366,69 +513,89 @@ def _relief_hits(
     y0: float,
     step: float,
 ) -> np.ndarray:
-    """First crossing of each ray with the relief surface z = -h(x, y).
-
-    March (adaptive steps) on the gridded height to bracket the first crossing, then Newton on the
-    exact analytic height (bisection fallback) to ~1e-7 mm.
-    """
+    """First crossing of each ray with the relief surface z = -h(x, y) (see `relief_march`)."""
     n = o.shape[0]
     out = np.full(n, np.inf)
     for i in range(n):
-        t = t0[i]
-        prev_t = t
-        prev_f = 1.0
-        first = True
-        while True:
-            x = o[i, 0] + t * d[i, 0]
-            y = o[i, 1] + t * d[i, 1]
-            h = _grid_height(x, y, grid, x0, y0, step)
-            fv = 1.0 if h < 0 else -(o[i, 2] + t * d[i, 2]) - h
-            if not first and prev_f > 0 and fv <= 0:
-                lo, hi = prev_t, t
-                # Newton on the exact surface from the bracket's interpolated root
-                tn = hi - fv * (hi - lo) / (fv - prev_f)
-                ok = False
-                for _ in range(12):
-                    x = o[i, 0] + tn * d[i, 0]
-                    y = o[i, 1] + tn * d[i, 1]
-                    h, hx, hy = _relief_exact(x, y, a, b, depth, bumps)
-                    if h < 0:
-                        break
-                    f = -(o[i, 2] + tn * d[i, 2]) - h
-                    df = -d[i, 2] - hx * d[i, 0] - hy * d[i, 1]
-                    if abs(f) < 1e-9:
-                        ok = True
-                        break
-                    if df == 0:
-                        break
-                    tn = tn - f / df
-                    if tn < lo - 1.0 or tn > hi + 1.0:
-                        break
-                if ok:
-                    out[i] = tn
-                    break
-                # fallback: bisection on the exact surface within the bracket
-                for _ in range(60):
-                    mid = 0.5 * (lo + hi)
-                    x = o[i, 0] + mid * d[i, 0]
-                    y = o[i, 1] + mid * d[i, 1]
-                    h, hx, hy = _relief_exact(x, y, a, b, depth, bumps)
-                    fm = 1.0 if h < 0 else -(o[i, 2] + mid * d[i, 2]) - h
-                    if fm > 0:
-                        lo = mid
-                    else:
-                        hi = mid
-                    if hi - lo < 1e-7:
-                        break
-                out[i] = 0.5 * (lo + hi)
-                break
-            if t >= t1[i]:
-                break
-            prev_t, prev_f = t, fv
-            first = False
-            # adaptive march: half the height gap above the surface, 0.25..4 mm; 1 mm off the support
-            t = min(t + (min(max(0.5 * fv, 0.25), 4.0) if h >= 0 else 1.0), t1[i])
+        out[i] = relief_march(
+            o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2], t0[i], t1[i], a, b, depth, bumps, grid, x0, y0, step
+        )
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def relief_march(
+    o0: float,
+    o1: float,
+    o2: float,
+    d0: float,
+    d1: float,
+    d2: float,
+    t_start: float,
+    t_end: float,
+    a: float,
+    b: float,
+    depth: float,
+    bumps: np.ndarray,
+    grid: np.ndarray,
+    x0: float,
+    y0: float,
+    step: float,
+) -> float:
+    """First crossing of one ray (local frame) with the relief surface z = -h(x, y); inf if none.
+
+    March (adaptive steps) on the gridded height to bracket the first crossing, then Newton on the
+    exact analytic height (bisection fallback) to ~1e-7 mm. The moving rig's cast
+    (drivers/sim/cast.py) calls this same function, so both paths find the same hits.
+    """
+    t = t_start
+    prev_t = t
+    prev_f = 1.0
+    first = True
+    while True:
+        x = o0 + t * d0
+        y = o1 + t * d1
+        h = _grid_height(x, y, grid, x0, y0, step)
+        fv = 1.0 if h < 0 else -(o2 + t * d2) - h
+        if not first and prev_f > 0 and fv <= 0:
+            lo, hi = prev_t, t
+            # Newton on the exact surface from the bracket's interpolated root
+            tn = hi - fv * (hi - lo) / (fv - prev_f)
+            for _ in range(12):
+                x = o0 + tn * d0
+                y = o1 + tn * d1
+                h, hx, hy = _relief_exact(x, y, a, b, depth, bumps)
+                if h < 0:
+                    break
+                f = -(o2 + tn * d2) - h
+                df = -d2 - hx * d0 - hy * d1
+                if abs(f) < 1e-9:
+                    return tn
+                if df == 0:
+                    break
+                tn = tn - f / df
+                if tn < lo - 1.0 or tn > hi + 1.0:
+                    break
+            # fallback: bisection on the exact surface within the bracket
+            for _ in range(60):
+                mid = 0.5 * (lo + hi)
+                x = o0 + mid * d0
+                y = o1 + mid * d1
+                h, hx, hy = _relief_exact(x, y, a, b, depth, bumps)
+                fm = 1.0 if h < 0 else -(o2 + mid * d2) - h
+                if fm > 0:
+                    lo = mid
+                else:
+                    hi = mid
+                if hi - lo < 1e-7:
+                    break
+            return 0.5 * (lo + hi)
+        if t >= t_end:
+            return np.inf
+        prev_t, prev_f = t, fv
+        first = False
+        # adaptive march: half the height gap above the surface, 0.25..4 mm; 1 mm off the support
+        t = min(t + (min(max(0.5 * fv, 0.25), 4.0) if h >= 0 else 1.0), t_end)
 
 
 @numba.njit(cache=True)

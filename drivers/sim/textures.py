@@ -10,7 +10,10 @@ from dataclasses import dataclass, field
 from functools import cached_property
 
 import cv2
+import numba
 import numpy as np
+
+import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
 
 BLACK_INK = (0.04, 0.04, 0.04)  # printed black: a few percent, never zero
 WHITE_PAPER = (0.85, 0.85, 0.85)
@@ -38,23 +41,36 @@ class Patches(Texture):
     origin: tuple[float, float] = (0.0, 0.0)
 
     def color(self, uv: np.ndarray, face: np.ndarray, base: np.ndarray) -> np.ndarray:
-        pal = np.asarray(self.colors, np.float64)  # (rows, cols, 3)
-        rows, cols = pal.shape[:2]
+        pal = np.ascontiguousarray(self.colors, np.float64)  # (rows, cols, 3)
+        out = np.empty((len(uv), 3))
+        uv = np.ascontiguousarray(uv, np.float64)
+        base = np.ascontiguousarray(np.broadcast_to(np.asarray(base, np.float64), 3))
         cw, ch = self.cell_mm
-        x = uv[:, 0] - self.origin[0]
-        y = uv[:, 1] - self.origin[1]
-        i = np.floor(y / ch).astype(np.int64)
-        j = np.floor(x / cw).astype(np.int64)
-        inside = (i >= 0) & (i < rows) & (j >= 0) & (j < cols)
-        out = np.broadcast_to(np.asarray(base, np.float64), (len(uv), 3)).copy()
-        out[inside] = pal[i[inside], j[inside]]
-        if self.gap_mm > 0:
+        gap_color = np.asarray(self.gap_color, np.float64)
+        _patches(uv, pal, float(cw), float(ch), *map(float, self.origin), float(self.gap_mm), gap_color, base, out)
+        return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _patches(uv, pal, cw, ch, ox, oy, gap_mm, gap_color, base, out):
+    """Patches.color per point: the cell's colour, the gap colour within gap_mm / 2 of a cell edge."""
+    rows, cols = pal.shape[0], pal.shape[1]
+    g = gap_mm / 2
+    for k in range(uv.shape[0]):
+        x = uv[k, 0] - ox
+        y = uv[k, 1] - oy
+        i = np.int64(np.floor(y / ch))
+        j = np.int64(np.floor(x / cw))
+        if not (i >= 0 and i < rows and j >= 0 and j < cols):
+            out[k, 0], out[k, 1], out[k, 2] = base[0], base[1], base[2]
+            continue
+        if gap_mm > 0:
             fx = x - j * cw
             fy = y - i * ch
-            g = self.gap_mm / 2
-            in_gap = inside & ((fx < g) | (fx > cw - g) | (fy < g) | (fy > ch - g))
-            out[in_gap] = self.gap_color
-        return out
+            if fx < g or fx > cw - g or fy < g or fy > ch - g:
+                out[k, 0], out[k, 1], out[k, 2] = gap_color[0], gap_color[1], gap_color[2]
+                continue
+        out[k, 0], out[k, 1], out[k, 2] = pal[i, j, 0], pal[i, j, 1], pal[i, j, 2]
 
 
 @dataclass
@@ -79,15 +95,28 @@ class Stickers(Texture):
         return pal
 
     def color(self, uv: np.ndarray, face: np.ndarray, base: np.ndarray) -> np.ndarray:
-        cell = self.edge_mm / self.grid
-        j = np.clip(np.floor(uv[:, 0] / cell), 0, self.grid - 1).astype(np.int64)
-        i = np.clip(np.floor(uv[:, 1] / cell), 0, self.grid - 1).astype(np.int64)
-        out = self._palette[face.astype(np.int64), i * self.grid + j]
-        fx = uv[:, 0] - j * cell
-        fy = uv[:, 1] - i * cell
-        g = self.gap_mm / 2
-        out[(fx < g) | (fx > cell - g) | (fy < g) | (fy > cell - g)] = self.gap_color
+        out = np.empty((len(uv), 3))
+        uv = np.ascontiguousarray(uv, np.float64)
+        face = np.ascontiguousarray(face)
+        gap_color = np.asarray(self.gap_color, np.float64)
+        _stickers(uv, face, self._palette, self.edge_mm / self.grid, self.grid, float(self.gap_mm), gap_color, out)
         return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _stickers(uv, face, pal, cell, grid, gap_mm, gap_color, out):
+    """Stickers.color per point: the face's sticker, the gap colour within gap_mm / 2 of its edge."""
+    g = gap_mm / 2
+    for k in range(uv.shape[0]):
+        j = np.int64(min(max(np.floor(uv[k, 0] / cell), 0.0), grid - 1.0))
+        i = np.int64(min(max(np.floor(uv[k, 1] / cell), 0.0), grid - 1.0))
+        fx = uv[k, 0] - j * cell
+        fy = uv[k, 1] - i * cell
+        if fx < g or fx > cell - g or fy < g or fy > cell - g:
+            out[k, 0], out[k, 1], out[k, 2] = gap_color[0], gap_color[1], gap_color[2]
+        else:
+            f, q = np.int64(face[k]), i * grid + j
+            out[k, 0], out[k, 1], out[k, 2] = pal[f, q, 0], pal[f, q, 1], pal[f, q, 2]
 
 
 @dataclass

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 
 import numpy as np
@@ -117,3 +118,18 @@ def test_sim_render_with_motion_writes_ground_truth_per_frame(capsys, tmp_path: 
     centre = [d[40:80, 60:100][d[40:80, 60:100] > 0].min() for d in depths]
     assert np.allclose(np.diff(centre), 4.0, atol=0.2)  # the cube moves 4 mm away per frame
     assert np.array_equal(read_float_tiff(out / "ground_truth" / "depth.tiff"), depths[-1])
+
+
+def test_sim_render_of_the_turntable_writes_each_frames_truth(capsys, tmp_path: Path) -> None:
+    out = tmp_path / "turning"
+    args = ["sim", "render", "--scene", "turntable", "--scheme", "two-shot", "--camera-size", "160x120"]
+    assert main([*args, "--set", "rotation_deg_per_frame=2", "--cycles", "2", "--out", str(out)]) == 0
+    assert len(read_dump(out).frames) == 4
+    depths = [read_float_tiff(out / "ground_truth" / "frames" / f"{i:06d}" / "depth.tiff") for i in range(4)]
+    assert all(not np.array_equal(a, b) for a, b in itertools.pairwise(depths))  # the bust turns every frame
+    rig = VirtualRig.from_preset("turntable", camera_size=(160, 120), rotation_deg_per_frame=2)
+    for i in range(4):
+        rig.render(None)
+        assert np.array_equal(rig.ground_truth.depth, depths[i])
+    bad = in_process(capsys, *args, "--set", "rotation_axis=[0, 0, 0]", "--out", tmp_path / "bad")
+    assert "'rotation_axis'" in bad and not (tmp_path / "bad").exists()

@@ -73,8 +73,13 @@ def test_charuco_markers_decode_with_opencv_and_corners_match_the_board_frame() 
 def test_board_yaml_has_the_documented_fields() -> None:
     board = load_scene("charuco").board
     assert board.board_yaml() == {
-        "type": "charuco", "rows": 8, "cols": 11, "square_mm": 12.0, "marker_mm": 9.0, "dictionary": "DICT_5X5_100"
-    }  # fmt: skip
+        "type": "charuco",
+        "rows": 8,
+        "cols": 11,
+        "square_mm": 12.0,
+        "marker_mm": 9.0,
+        "dictionary": "DICT_5X5_100",
+    }
     assert load_scene("checkerboard").board.board_yaml() == {
         "type": "checkerboard",
         "rows": 7,
@@ -119,6 +124,11 @@ BASE = {
         (lambda d: d["objects"][0].update(radius=-1), "objects[0].radius"),
         (lambda d: d.update(depth_range_mm=[900, 600]), "depth_range_mm"),
         (lambda d: d.update(rig={"warp_drive": 1}), "rig.warp_drive"),
+        (lambda d: d["objects"].append({"type": "ellipsoid", "center": [0, 0, 700]}), "objects[1].semi_axes"),
+        (
+            lambda d: d["objects"].append({"type": "ellipsoid", "center": [0, 0, 700], "semi_axes": [1, 2]}),
+            "objects[1].semi_axes",
+        ),
         (
             lambda d: d["objects"].append({"type": "board", "board": {"type": "checkerboard", "rows": 7}, "pose": {}}),
             "objects[1].board.cols",
