@@ -29,10 +29,11 @@ MODES = ("off", "auto")
 def motions(scene: str) -> list[tuple[str, dict]]:
     """(label, rig overrides) of the motions a scene is measured at: still, then lateral x and y, depth z (and a
     turntable's rotations)."""
+    if scene == "turntable":  # (the preset turns by itself: still is a rotation of 0)
+        return [("still", {"rotation_deg_per_frame": 0.0})] + [
+            (f"turn {d:g} deg", {"rotation_deg_per_frame": d}) for d in TURNTABLE_DEG
+        ]
     out = [("still", {})]
-    if scene == "turntable":
-        out += [(f"turn {d:g} deg", {"rotation_deg_per_frame": d}) for d in TURNTABLE_DEG]
-        return out
     out += [(f"x {m:g} mm", {"motion_mm_per_frame": (m, 0.0, 0.0)}) for m in LATERAL_MM]
     out += [(f"y {m:g} mm", {"motion_mm_per_frame": (0.0, m, 0.0)}) for m in LATERAL_MM]
     out.append(("z 2 mm", {"motion_mm_per_frame": (0.0, 0.0, 2.0)}))
