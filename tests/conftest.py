@@ -13,6 +13,7 @@ from __future__ import annotations
 import glob
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -98,6 +99,32 @@ def run_cli():
         )
 
     return run
+
+
+def _as_from_a_terminal() -> None:
+    # A command started in the background of a non-interactive shell (`pytest ... &`, CI runners, xdist workers
+    # started that way) inherits SIGINT ignored, and Python then installs no KeyboardInterrupt handler: the
+    # child would never see the test's Ctrl-C. An operator's terminal runs slscan with SIGINT at its default.
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+@pytest.fixture
+def slscan_process() -> Iterator[Callable[..., subprocess.Popen]]:
+    """Start `slscan ARGS...` as from an operator's terminal (Ctrl-C reaches it); killed at teardown if alive."""
+    started: list[subprocess.Popen] = []
+
+    def start(*args: str, **kw) -> subprocess.Popen:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "app.cli", *map(str, args)], preexec_fn=_as_from_a_terminal, **kw
+        )
+        started.append(proc)
+        return proc
+
+    yield start
+    for proc in started:
+        if proc.poll() is None:  # a failed test must not leave a recorder running after the suite
+            proc.kill()
+            proc.communicate()
 
 
 # ----------------------------------------------------------------------------------------------- parallel runs

@@ -46,9 +46,9 @@ def wait_for_frames(folder, n: int, timeout_s: float = 90.0, poll_s: float = 0.0
         time.sleep(poll_s)
 
 
-def slscan_dump(cfg: str, out, **kw) -> subprocess.Popen:
-    argv = [sys.executable, "-m", "app.cli", "dump", "--config", cfg, "--frames", "100000", "--out", str(out)]
-    return subprocess.Popen(argv, **kw)
+def slscan_dump(start, cfg: str, out, **kw) -> subprocess.Popen:
+    """`slscan dump` of up to 100,000 frames, started by the `slscan_process` fixture."""
+    return start("dump", "--config", cfg, "--frames", "100000", "--out", out, **kw)
 
 
 def record(session, folder, frames: int, png_level: int = 0):
@@ -161,9 +161,11 @@ def test_kill_9_at_random_points_leaves_a_readable_dump(tmp_path, png_level):
         assert (folder / "dump.yaml").read_text().endswith("\n")
 
 
-def test_kill_9_of_slscan_dump_leaves_a_readable_dump(tmp_path):
+def test_kill_9_of_slscan_dump_leaves_a_readable_dump(tmp_path, slscan_process):
     out = tmp_path / "rec"
-    proc = slscan_dump(small_config(tmp_path), out, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = slscan_dump(
+        slscan_process, small_config(tmp_path), out, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
     try:
         wait_for_frames(out, 6)
     finally:
@@ -188,9 +190,11 @@ def test_camera_that_stops_sending_times_out_and_the_dump_is_finalised(tmp_path,
     assert (out / "dump.yaml").read_text().endswith("\n")
 
 
-def test_ctrl_c_stops_slscan_dump_cleanly(tmp_path):
+def test_ctrl_c_stops_slscan_dump_cleanly(tmp_path, slscan_process):
     out = tmp_path / "rec"
-    proc = slscan_dump(small_config(tmp_path), out, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = slscan_dump(
+        slscan_process, small_config(tmp_path), out, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
     wait_for_frames(out, 4)
     proc.send_signal(signal.SIGINT)
     stdout, stderr = proc.communicate(timeout=60)

@@ -83,9 +83,13 @@ def test_project_without_display_is_one_line_exit_2(run_cli):
     )
 
 
-def _start_project(xserver: str) -> subprocess.Popen:
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "app.cli", "project", "--scheme", "graycode", "--hz", "30"],
+def _start_project(start, xserver: str) -> subprocess.Popen:
+    proc = start(
+        "project",
+        "--scheme",
+        "graycode",
+        "--hz",
+        "30",
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -114,18 +118,13 @@ def _press(xserver: str, keysym_name: str) -> None:
 
 @pytest.mark.xserver
 @pytest.mark.parametrize("stop", ["Escape", "q", "SIGINT"])
-def test_project_stops_cleanly_on_esc_q_and_ctrl_c(xserver, stop):
-    proc = _start_project(xserver)
-    try:
-        if stop == "SIGINT":
-            proc.send_signal(signal.SIGINT)
-        else:
-            _press(xserver, stop)
-        out, err = proc.communicate(timeout=15)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
+def test_project_stops_cleanly_on_esc_q_and_ctrl_c(xserver, slscan_process, stop):
+    proc = _start_project(slscan_process, xserver)
+    if stop == "SIGINT":
+        proc.send_signal(signal.SIGINT)
+    else:
+        _press(xserver, stop)
+    out, err = proc.communicate(timeout=15)
     assert proc.returncode == 0, err
     assert err == ""
     assert re.search(r"screen 0: \d+ flips, interval [\d.]+ ms mean", out), out
