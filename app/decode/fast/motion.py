@@ -20,6 +20,7 @@ from numba import njit
 
 import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
 from app.decode.fast.differences import PAIR_ENTRIES
+from app.decode.primitives import gather
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -46,13 +47,16 @@ def repair_older(
     newest, older, previous = frames
     H, W, C = newest.shape
     rows = np.empty((5 * C + 8, W), np.float32)  # the row loop's scratch rows
+    # table indices and gathered values: C rows of int32, a row of int64 (a pair table's entries)
+    lookups = (np.empty((C, W), np.int32), np.empty(W, np.int64))
     flat = (older.reshape(H, W * C), out.reshape(H, W * C))  # (the rows' copy as one vector loop)
-    return _repair_rows((newest, previous), tables, watched, limits, radii, spread, rows, flat, out)
+    return _repair_rows((newest, previous), tables, watched, limits, radii, spread, rows, lookups, flat, out)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
-def _repair_rows(frames, tables, watched, limits, radii, spread, rows, flat, out):
-    """repair_older's loop over the rows, without reference counting (its arrays all belong to the caller)."""
+def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, flat, out):
+    """repair_older's loop over the rows, without reference counting (its arrays all belong to the caller). Table
+    reads go through `gather` (indices first, into plain rows): the loops around them then vectorise."""
     newest, previous = frames
     lin, dlin, pairs, inverse, grid = tables
     H, W, C = newest.shape
@@ -67,7 +71,8 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, flat, out
     moving = rows[3 * C + 7]
     changes = rows[3 * C + 8 : 4 * C + 8]  # |newest - previous|, linear, per watched channel
     slopes = rows[4 * C + 8 : 5 * C + 8]  # the newest and the previous frame's noise slopes summed, per watched channel
-    pair_halves = pairs.view(np.float32)
+    index, entries = lookups
+    entry_halves = entries.view(np.float32)
     shared_pairs = pairs.shape[0] == PAIR_ENTRIES  # (one pair table for the three channels)
     older_flat, out_flat = flat
     n_moving = 0
@@ -81,11 +86,14 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, flat, out
             change, slope_sum = changes[i], slopes[i]
             # (the gathers, then the arithmetic over plain rows, which vectorises)
             if pairs.shape[0] >= PAIR_ENTRIES:  # 8-bit: (lin[n] - lin[p], dlin[n] + dlin[p]) in one gather
-                base = 0 if shared_pairs else c * PAIR_ENTRIES
+                base = np.int32(0 if shared_pairs else c * PAIR_ENTRIES)
+                at = index[0]
                 for x in range(W):
-                    e = 2 * (base + 256 * np.int64(previous[y, x, c]) + np.int64(newest[y, x, c]))
-                    change[x] = abs(pair_halves[e])
-                    slope_sum[x] = pair_halves[e + 1]
+                    at[x] = base + (np.int32(previous[y, x, c]) << 8) + np.int32(newest[y, x, c])
+                gather(entries, pairs, at, W)
+                for x in range(W):
+                    change[x] = abs(entry_halves[2 * x])
+                    slope_sum[x] = entry_halves[2 * x + 1]
             else:
                 table = lin[c]
                 slope = dlin[c]
@@ -99,14 +107,14 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, flat, out
         if candidates < 2:
             continue
         for c in range(C):
-            table = lin[c]
             lnc, hic, loc = ln[c], hi[c], lo[c]
+            at = index[c]
             for x in range(W):
-                lnc[x] = table[newest[y, x, c]]
+                at[x] = newest[y, x, c]
+            gather(lnc, lin[c], at, W)
             # the narrow window where it holds both levels of the channel (its contrast a share of the wide
             # window's), else the wide one: a narrow window reaches across fewer albedo and depth edges
-            _window_extremes(lnc, lnc, radii[0], hic, loc, spans)
-            _window_extremes(lnc, lnc, radii[1], wide_hi, wide_lo, spans)
+            _envelopes(lnc, radii[0], radii[1], hic, loc, wide_hi, wide_lo, spans)
             for x in range(W):
                 narrow = hic[x] - loc[x] >= narrow_share * (wide_hi[x] - wide_lo[x])
                 hic[x] = hic[x] if narrow else wide_hi[x]
@@ -129,57 +137,101 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, flat, out
         for o in range(1, min(spread, W - 1) + 1):
             _max_inplace(moving[: W - o], changed[o:])
             _max_inplace(moving[o:], changed[: W - o])
-        for x in range(W):
-            if moving[x] == 0:
-                continue
-            n_moving += 1
+        # every pixel's inverse computed and kept where the pixel moves (a select, not a branch: vectorised)
+        last_bin = np.float32(grid[2] - 1)
+        first, per_unit = grid[0], grid[1]
+        for c in range(C):
+            hic, loc, lnc, at = hi[c], lo[c], ln[c], index[c]
+            for x in range(W):
+                at[x] = inverse_bin(hic[x] + loc[x] - lnc[x], first, per_unit, last_bin)
+            gather(at, inverse[c], at, W)  # (in place: each lane reads its index before its value is stored)
+        if C == 3:  # the three channels of a pixel in one iteration: whole interleaved stores
+            v0, v1, v2 = index[0], index[1], index[2]
+            row = out[y]
+            for x in range(W):
+                keep = moving[x] == 0
+                row[x, 0] = row[x, 0] if keep else v0[x]
+                row[x, 1] = row[x, 1] if keep else v1[x]
+                row[x, 2] = row[x, 2] if keep else v2[x]
+        else:
             for c in range(C):
-                out[y, x, c] = inverse[c, inverse_bin(hi[c, x] + lo[c, x] - ln[c, x], grid)]
+                vc = index[c]
+                for x in range(W):
+                    out[y, x, c] = out[y, x, c] if moving[x] == 0 else vc[x]
+        for x in range(W):
+            n_moving += moving[x] != 0
     return n_moving
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _window_extremes(up, down, radius, hi, lo, spans):
-    """hi[x] = max(up[x - radius : x + radius + 1]) and lo[x] = min(down[...]), the window clipped at the row's ends.
-    Inside the row from spans doubled to the largest power of two p in the window (a sparse table: two reads per
-    pixel; spans (4, W) float32 scratch, each pass from one row into another); the pixels whose window the row's
-    ends cut short are done directly. The loops read through views from each offset: an index x + s of unknown
-    sign would get numba's negative-index fix per element and stay scalar."""
-    W = up.shape[0]
+def _envelopes(row, r1, r2, hi1, lo1, hi2, lo2, spans):
+    """hi1[x] = max(row[x - r1 : x + r1 + 1]) and lo1[x] = the min, the window clipped at the row's ends, and the
+    same over r2 into hi2, lo2. Inside the row from spans doubled to the largest power of two p in each
+    window (a sparse table: two reads per pixel), one table for both windows: the wider's spans go on from the
+    narrower's. spans (4, W) float32 scratch, each pass from one pair of rows into the other; the pixels whose
+    window the row's ends cut short are done directly."""
+    W = row.shape[0]
+    p1 = _span_of(r1)
+    p2 = _span_of(r2)
+    a_hi, a_lo, b_hi, b_lo = spans[0], spans[1], spans[2], spans[3]
+    if p1 == 1:
+        _window_from(row, row, r1, p1, hi1, lo1)
+    if p2 == 1:
+        _window_from(row, row, r2, p2, hi2, lo2)
+    s = 1
+    state = 0  # the rows holding the spans so far: 0 the row itself, 1 a, 2 b (named rows: the loops vectorise)
+    while s < max(p1, p2) and s < W:
+        if state == 0:
+            _spans_doubled(row, row, s, a_hi, a_lo)
+        elif state == 1:
+            _spans_doubled(a_hi, a_lo, s, b_hi, b_lo)
+        else:
+            _spans_doubled(b_hi, b_lo, s, a_hi, a_lo)
+        state = 2 if state == 1 else 1
+        s *= 2
+        for p, radius, hi, lo in ((p1, r1, hi1, lo1), (p2, r2, hi2, lo2)):
+            if s == p:
+                if state == 1:
+                    _window_from(a_hi, a_lo, radius, p, hi, lo)
+                else:
+                    _window_from(b_hi, b_lo, radius, p, hi, lo)
+    for radius, hi, lo in ((r1, hi1, lo1), (r2, hi2, lo2)):
+        ends = (range(0, min(radius, W)), range(max(W - radius, min(radius, W)), W))
+        for end in ends:  # the pixels whose window the row's ends cut short
+            _window_direct(row, row, radius, hi, lo, end)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _span_of(radius):
+    """The largest power of two within a window of 2 radius + 1 pixels."""
     p = 1
     while 2 * p <= 2 * radius + 1:
         p *= 2
-    a_hi, a_lo, b_hi, b_lo = spans[0], spans[1], spans[2], spans[3]
-    _copy_into(up, a_hi)
-    _copy_into(down, a_lo)
-    s = 1
-    in_a = True  # which pair of rows holds the spans so far (named rows, no swapped references: the loops vectorise)
-    while s < p and s < W:  # the spans over [x, x + 2 s - 1], clipped at the row's end
-        n = W - s
-        if in_a:
-            _max_into(a_hi[:n], a_hi[s:], b_hi[:n])
-            _min_into(a_lo[:n], a_lo[s:], b_lo[:n])
-            _copy_into(a_hi[n:], b_hi[n:])
-            _copy_into(a_lo[n:], b_lo[n:])
-        else:
-            _max_into(b_hi[:n], b_hi[s:], a_hi[:n])
-            _min_into(b_lo[:n], b_lo[s:], a_lo[:n])
-            _copy_into(b_hi[n:], a_hi[n:])
-            _copy_into(b_lo[n:], a_lo[n:])
-        in_a = not in_a
-        s *= 2
-    n = W - 2 * radius  # pixels whose whole window is inside the row
+    return p
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _spans_doubled(src_hi, src_lo, s, dst_hi, dst_lo):
+    """The spans over [x, x + 2 s - 1] from those over [x, x + s - 1], clipped at the row's end. Read through views
+    from each offset: an index x + s of unknown sign would get numba's negative-index fix and stay scalar."""
+    W = src_hi.shape[0]
+    n = W - s
+    _max_into(src_hi[:n], src_hi[s:], dst_hi[:n])
+    _min_into(src_lo[:n], src_lo[s:], dst_lo[:n])
+    _copy_into(src_hi[n:], dst_hi[n:])
+    _copy_into(src_lo[n:], dst_lo[n:])
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _window_from(span_hi, span_lo, radius, p, hi, lo):
+    """The window extremes of the pixels whose whole window lies inside the row, from spans of p pixels: the
+    window's first span and its last, which overlap."""
+    W = span_hi.shape[0]
+    n = W - 2 * radius
     if n > 0:
         shift = 2 * radius - p + 1  # the second span's start, from the window's first pixel
-        if in_a:
-            _max_into(a_hi[:n], a_hi[shift : shift + n], hi[radius : radius + n])
-            _min_into(a_lo[:n], a_lo[shift : shift + n], lo[radius : radius + n])
-        else:
-            _max_into(b_hi[:n], b_hi[shift : shift + n], hi[radius : radius + n])
-            _min_into(b_lo[:n], b_lo[shift : shift + n], lo[radius : radius + n])
-    ends = (range(0, min(radius, W)), range(max(W - radius, min(radius, W)), W))
-    for end in ends:  # the pixels whose window the row's ends cut short
-        _window_direct(up, down, radius, hi, lo, end)
+        _max_into(span_hi[:n], span_hi[shift : shift + n], hi[radius : radius + n])
+        _min_into(span_lo[:n], span_lo[shift : shift + n], lo[radius : radius + n])
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -240,8 +292,10 @@ def _fill(out, value):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def inverse_bin(value: np.float32, grid: np.ndarray) -> int:
-    """The bin of the inverse table (motion.inverse_table) nearest to a linear value: grid = (first bin's value,
-    bins per linear unit, number of bins), float32; values outside are clamped to the first or last bin."""
-    b = int((value - grid[0]) * grid[1] + np.float32(0.5))
-    return min(max(b, 0), int(grid[2]) - 1)
+def inverse_bin(value: np.float32, first: np.float32, per_unit: np.float32, last_bin: np.float32) -> np.int32:
+    """The bin of the inverse table (motion.inverse_table) nearest to a linear value, for its grid (first bin's
+    value, bins per linear unit, last bin's index); values outside are clamped to the first or last bin. Clamped
+    in float32, then truncated to int32: the same bin as truncating first (values in (-1, 0) truncate to 0), in
+    lanes that vectorise."""
+    b = (value - first) * per_unit + np.float32(0.5)
+    return np.int32(min(max(b, np.float32(0.0)), last_bin))
