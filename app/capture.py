@@ -308,22 +308,20 @@ class FrameChecker:
         need = kind.frames_per_set(self.n_patterns)
         if len(self._history) < need:
             return None
-        window = list(self._history)[-need:]
+        # a two-shot pair takes the checked frame before it too: group_frame_sets says whether it is the pair's
+        # previous frame (consecutive, and of the newest frame's pattern), for motion detection
+        extra = 1 if need == 2 and len(self._history) > need and self._history[-need - 1].verified else 0
+        window = list(self._history)[-(need + extra) :]
         if not all(a.verified for a in window):
             return None
         # Ticks stand in for frame ids: the checks above made both consecutive together.
         tags = [(a.tick, int(a.frame.pattern)) for a in window]  # type: ignore[arg-type]
         sets, _ = group_frame_sets(tags, self.scheme, self.n_patterns, sliding=True)
-        if not sets or sets[-1].first != 0:
+        if not sets or sets[-1].first != extra:
             return None
         fs = sets[-1]
         frames = tuple(window[i].frame for i in fs.indices)
-        previous = None
-        if need == 2 and len(self._history) > need:  # the frame before the pair, if checked and consecutive
-            before = self._history[-need - 1]
-            same_pattern = before.frame.pattern == window[-1].frame.pattern
-            if before.verified and before.tick == window[0].tick - 1 and same_pattern:
-                previous = before.frame
+        previous = window[fs.previous].frame if fs.previous is not None else None
         if not self.sliding or kind.disjoint_sets:
             self._history.clear()
         self.stats.sets += 1

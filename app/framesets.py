@@ -30,7 +30,7 @@ class FrameIndexSet:
     previous: int | None = None  # two-shot: the frame just before the set, if consecutive (it saw the newest's pattern)
 
     @property
-    def newest(self) -> int:
+    def newest_index(self) -> int:
         """The pattern index of the set's frame taken last."""
         return 0 if self.reversed_order else len(self.indices) - 1
 

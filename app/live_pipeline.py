@@ -107,10 +107,7 @@ class LiveDecoder:
         if self.triangulates_in_decode:
             stripes, depth = self.frameset_decoder.stripes_and_depth(list(images), newest, previous)
             return stripes, depth, 0.0
-        images, moving = self.frameset_decoder.repaired(list(images), newest, previous)
-        stripes = self.decode(images)
-        if moving is not None:
-            stripes.info["moving"] = moving
+        stripes = self.frameset_decoder.stripes(list(images), newest, previous)
         t0 = time.perf_counter()
         depth = self.depth(stripes)
         return stripes, depth, (time.perf_counter() - t0) * 1e3

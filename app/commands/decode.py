@@ -91,7 +91,7 @@ def _work(job: tuple[int, FrameIndexSet, str, bool, bool]) -> tuple[int, int]:
     frames = [dump.load_frame(i) for i in fs.indices]
     where = ", ".join(str(dump.folder / dump.frames[i].file) for i in fs.indices)
     previous = dump.load_frame(fs.previous) if fs.previous is not None and dec.motion is not None else None
-    res = dec.decode(frames, where=where, newest=fs.newest, previous=previous)
+    res = dec.decode(frames, where=where, newest=fs.newest_index, previous=previous)
     o = Path(out)
     write_png(o / f"stripes_{n:06d}.png", stripe_colours(res.stripes.stripe))
     if res.depth is not None:

@@ -82,7 +82,8 @@ def inverse_table(lin: np.ndarray, bins: int = INVERSE_BINS) -> tuple[np.ndarray
 
 
 class MotionRepair:
-    """repair() with its tables built once (per decoder and frame depth)."""
+    """The repair of a pair's older frame (fast.repair_older) with its tables built once (per decoder and frame
+    depth)."""
 
     def __init__(self, luts: tuple[np.ndarray, np.ndarray], channels: str, params: MotionParams) -> None:
         lin, dlin = luts
@@ -107,18 +108,6 @@ class MotionRepair:
         return out, int(n)
 
 
-def repair(
-    newest: np.ndarray,
-    older: np.ndarray,
-    previous: np.ndarray,
-    luts: tuple[np.ndarray, np.ndarray],
-    channels: str,
-    params: MotionParams,
-) -> tuple[np.ndarray, int]:
-    """MotionRepair(luts, channels, params)(newest, older, previous): its tables built for this call."""
-    return MotionRepair(luts, channels, params)(newest, older, previous)
-
-
 def repair_reference(
     newest: np.ndarray,
     older: np.ndarray,
@@ -127,7 +116,8 @@ def repair_reference(
     channels: str,
     params: MotionParams,
 ) -> tuple[np.ndarray, int]:
-    """repair() in plain numpy: the specification of `fast.repair_older`."""
+    """MotionRepair(luts, channels, params)(newest, older, previous) in plain numpy: the specification of
+    `fast.repair_older`."""
     lin, dlin = luts
     ch = np.arange(3)
     ln, lp = lin[ch, newest], lin[ch, previous]  # (H, W, 3) linear values

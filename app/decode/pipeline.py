@@ -95,10 +95,23 @@ class FrameSetDecoder:
         frame's pattern): with both and motion "auto", a two-shot pair decodes its newest frame where the scene moved
         (the stripe map's info "moving" = the share of such pixels)."""
         frames, moving = self.repaired(frames, newest, previous)
-        sm, depth = self._stripes_and_depth(frames)
-        if moving is not None:
-            sm.info["moving"] = moving
-        return sm, depth
+        depth = None
+        geometry = self.triangulator.moebius_geometry if self.triangulator is not None else None
+        if self.kind.depth_in_decode and geometry is not None:
+            sm, depth = self.decoder.decode_depth(frames[0], frames[1], geometry)
+        else:
+            sm = self.kind.stripes(self.decoder, frames)
+        if depth is None and self.triangulator is not None:
+            depth = self.triangulator.depth(sm.column)
+        return _noting_motion(sm, moving), depth
+
+    def stripes(
+        self, frames: list[np.ndarray], newest: int | None = None, previous: np.ndarray | None = None
+    ) -> StripeMap:
+        """The stripe map alone of a frame set in pattern order (no checks, no triangulation); newest, previous:
+        see stripes_and_depth."""
+        frames, moving = self.repaired(list(frames), newest, previous)
+        return _noting_motion(self.kind.stripes(self.decoder, frames), moving)
 
     def repaired(
         self, frames: list[np.ndarray], newest: int | None, previous: np.ndarray | None
@@ -117,21 +130,6 @@ class FrameSetDecoder:
         out = list(frames)
         out[older] = fixed
         return out, n / max(1, frames[newest].shape[0] * frames[newest].shape[1])
-
-    def _stripes_and_depth(self, frames: list[np.ndarray]) -> tuple[StripeMap, np.ndarray | None]:
-        depth = None
-        geometry = self.triangulator.moebius_geometry if self.triangulator is not None else None
-        if self.kind.depth_in_decode and geometry is not None:
-            sm, depth = self.decoder.decode_depth(frames[0], frames[1], geometry)
-        else:
-            sm = self.stripes(frames)
-        if depth is None and self.triangulator is not None:
-            depth = self.triangulator.depth(sm.column)
-        return sm, depth
-
-    def stripes(self, frames: list[np.ndarray] | tuple[np.ndarray, ...]) -> StripeMap:
-        """The stripe map alone of a frame set in pattern order (no checks, no triangulation)."""
-        return self.kind.stripes(self.decoder, frames)
 
     def decode(
         self,
@@ -157,6 +155,13 @@ class FrameSetDecoder:
         if self.triangulator is not None:
             cloud = self.triangulator.points(depth, texture)
         return DecodedSet(sm, depth, cloud, texture)
+
+
+def _noting_motion(sm: StripeMap, moving: float | None) -> StripeMap:
+    """sm with its info "moving" (the share of pixels decoded from the newest frame alone) where motion was handled."""
+    if moving is not None:
+        sm.info["moving"] = moving
+    return sm
 
 
 def average_frames_of(a: np.ndarray, b: np.ndarray) -> np.ndarray:

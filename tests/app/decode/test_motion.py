@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from app.bench.motion import score
-from app.decode.motion import MotionParams, check_motion_mode, repair, repair_reference
+from app.decode.motion import MotionParams, MotionRepair, check_motion_mode, repair_reference
 from app.decode.pipeline import FrameSetDecoder
 from app.errors import InputError
 from app.framesets import group_frame_sets
@@ -47,7 +47,7 @@ def moving_face():
 def test_the_compiled_repair_is_its_numpy_statement(bit_depth):
     frames, _, decoders = sequence("cube", motion_mm_per_frame=(4.0, 0.0, 0.0), bit_depth=bit_depth)
     luts = decoders["auto"].decoder.luts(frames[0].dtype)
-    fast, n_fast = repair(frames[3], frames[2], frames[1], luts, "GB", MotionParams())
+    fast, n_fast = MotionRepair(luts, "GB", MotionParams())(frames[3], frames[2], frames[1])
     ref, n_ref = repair_reference(frames[3], frames[2], frames[1], luts, "GB", MotionParams())
     assert n_fast == n_ref > 0.2 * frames[0].shape[0] * frames[0].shape[1]
     np.testing.assert_array_equal(fast, ref)
@@ -105,7 +105,7 @@ def test_sliding_pairs_know_the_frame_before_them():
     tags = [(10, 0), (11, 1), (12, 0), (13, 1), (15, 0), (16, 1)]
     sets, _ = group_frame_sets(tags, "two-shot", 2)
     # pairs 0-1 (none before), 1-2 (frame 0 saw pattern 0, the newest's), 2-3 (frame 1), then after the gap 4-5
-    assert [(s.indices, s.newest, s.previous) for s in sets] == [
+    assert [(s.indices, s.newest_index, s.previous) for s in sets] == [
         ((0, 1), 1, None),
         ((2, 1), 0, 0),
         ((2, 3), 1, 1),
