@@ -1,9 +1,11 @@
 """Frame dumps, format `slscan-dump` version 1 (docs/formats.md).
 
-The writer is crash-safe by construction: a frame's PNG is written under a temporary name and
-renamed into place, and only then is its one-line entry appended to `dump.yaml`, whose `frames:`
-list is the last key. After a kill the file ends, at worst, in a half-written line that the
-reader drops, so a dump is always readable up to its last complete frame.
+The writer is crash-safe by construction: a frame's PNG is written whole under a temporary name, then
+its one-line entry is appended to `dump.yaml` (whose `frames:` list is the last key), then the PNG is
+renamed into place. After a kill the file ends, at worst, in a half-written line or an entry whose
+frame is still under its temporary name; the reader drops both, so a dump is always readable up to its
+last complete frame, and `repair_dump` recovers the renamed-too-late one. Repair deletes nothing: what
+it takes out of `frames/` goes to `orphans/`, and the old index stays as `dump.yaml.bak`.
 """
 
 from __future__ import annotations
@@ -124,11 +126,13 @@ class DumpWriter:
             f"timestamp_ns: {record.timestamp_ns}}}\n"
         )
         try:
+            # The frame's bytes complete under the temporary name, then its entry, then the rename: a kill
+            # between the two leaves an entry whose file is a complete .tmp.png, which --repair renames into
+            # place (the entry holds the tag, which nothing else can recover).
             _write_file(tmp, data)
-            os.replace(tmp, self.folder / rel)
-            # The entry goes in only once its frame is complete under its final name.
             self._index.write(line)
             self._index.flush()
+            os.replace(tmp, self.folder / rel)
         except OSError as exc:
             _unlink_quietly(tmp)
             what = "disk full" if exc.errno in (errno.ENOSPC, errno.EDQUOT) else exc.strerror
@@ -251,12 +255,23 @@ def read_dump(folder: str | os.PathLike) -> Dump:
 
 
 def _inside(folder: Path, rel: object, field_name: str) -> Path:
+    """folder / rel, for a relative path that stays inside the folder once symlinks are resolved."""
     if not isinstance(rel, str) or not rel:
         raise InputError(f"{folder / INDEX}: field '{field_name}' must be a relative path")
     p = Path(rel)
     if p.is_absolute() or ".." in p.parts:
         raise InputError(f"{folder / INDEX}: field '{field_name}' = {rel!r} leaves the dump folder")
+    if not _resolves_inside(folder, folder / p):
+        raise InputError(f"{folder / INDEX}: field '{field_name}' = {rel!r} is a symlink that leaves the dump folder")
     return folder / p
+
+
+def _resolves_inside(folder: Path, path: Path) -> bool:
+    """Whether path, its symlinks resolved, lies inside folder (itself resolved)."""
+    try:
+        return path.resolve().is_relative_to(folder.resolve())
+    except (OSError, RuntimeError):  # a symlink loop
+        return False
 
 
 def _write_file(path: Path, data: bytes) -> None:
@@ -281,42 +296,105 @@ def _unlink_quietly(path: Path) -> None:
 @dataclass(frozen=True)
 class RepairReport:
     frames: int  # frames the repaired index lists
-    dropped_entries: int  # index entries removed (half-written line, frame file missing)
-    removed_partial: int  # *.tmp.png files of a frame that was being written
-    unindexed: int  # complete frame files with no index entry (killed between rename and append): removed
+    dropped_entries: int  # index entries removed (half-written line, frame file missing or incomplete)
+    recovered: int  # frames whose entry was written but not yet their rename: renamed into place, kept
+    orphaned: int  # files taken out of frames/ into orphans/: partial frames, frames with no entry
+    backup: str  # the old index, kept beside the new one
 
     def summary(self) -> str:
         return (
-            f"{self.frames} frames readable; removed {self.dropped_entries} broken index entr"
-            f"{'y' if self.dropped_entries == 1 else 'ies'}, {self.removed_partial} partial and "
-            f"{self.unindexed} unindexed frame file(s)"
+            f"{self.frames} frames readable ({self.recovered} recovered); dropped {self.dropped_entries} broken "
+            f"index entr{'y' if self.dropped_entries == 1 else 'ies'}; {self.orphaned} file(s) moved to "
+            f"{ORPHANS}/; the old index kept as {self.backup}"
         )
 
 
-def repair_dump(folder: str | os.PathLike) -> RepairReport:
-    """Make a dump whose writer was killed clean: index = its readable frames, no stray files.
+ORPHANS = "orphans"
 
-    The reader already reads such a dump up to its last complete frame; repairing rewrites
-    `dump.yaml` atomically (complete lines, closing newline) and removes the leftovers.
+
+def repair_dump(folder: str | os.PathLike) -> RepairReport:
+    """Make a dump whose writer was killed clean: index = its readable frames, nothing else in frames/.
+
+    Never makes a readable dump less readable and deletes nothing: the index is parsed as the reader parses
+    it (any key order) and written whole beside the old one, which is kept as dump.yaml.bak (or .bak.N); a
+    frame whose entry was written but not its rename is renamed into place when its PNG is complete; partial
+    frames and frames with no entry move to orphans/. Refuses a dump whose frames/ or index leaves the folder
+    (a symlink out), so nothing outside it is touched.
     """
     folder = Path(folder)
     dump = read_dump(folder)
     path = folder / INDEX
-    text = path.read_bytes().decode("utf-8", errors="replace")
-    n_lines = sum(1 for ln in text.splitlines() if ln.startswith("- {file:"))
-    head = text[: text.index("\nframes:") + 1] if "\nframes:" in text else text
+    frames_dir = folder / "frames"
+    for p in (path, frames_dir):
+        if p.is_symlink() or not _resolves_inside(folder, p):
+            raise InputError(f"{p}: is a symlink; --repair changes nothing through a symlink")
+    entries = _index_entries(path)
+    listed = list(dump.frames)
+    recovered = 0
+    # the entries after the last complete frame: the one whose rename a kill prevented is recovered
+    for entry in entries[len(listed) : len(listed) + dump.dropped_tail]:
+        try:
+            rec = FrameRecord(
+                str(entry["file"]), int(entry["pattern"]), int(entry["frame_id"]), int(entry["timestamp_ns"])
+            )
+            final = _inside(folder, rec.file, "frames[].file")
+        except (TypeError, KeyError, ValueError, InputError):
+            break
+        tmp = final.with_name(final.stem + ".tmp.png")
+        ok_order = not listed or (rec.frame_id > listed[-1].frame_id and rec.timestamp_ns >= listed[-1].timestamp_ns)
+        if not (ok_order and tmp.is_file() and not tmp.is_symlink() and _complete_png(tmp)):
+            break
+        os.replace(tmp, final)
+        listed.append(rec)
+        recovered += 1
+    header = {k: v for k, v in dump.meta.items() if k != "frames"}
     lines = [
         f"- {{file: {r.file}, pattern: {r.pattern}, frame_id: {r.frame_id}, timestamp_ns: {r.timestamp_ns}}}\n"
-        for r in dump.frames
+        for r in listed
     ]
-    tmp = folder / (INDEX + ".repair")
-    _write_file(tmp, (head + "frames:\n" + "".join(lines)).encode())
-    os.replace(tmp, path)
-    partial = list((folder / "frames").glob("*.tmp.png"))
-    for p in partial:
-        _unlink_quietly(p)
-    listed = {(folder / r.file).resolve() for r in dump.frames}
-    unindexed = [p for p in (folder / "frames").glob("*.png") if p.resolve() not in listed]
-    for p in unindexed:
-        _unlink_quietly(p)
-    return RepairReport(len(dump.frames), n_lines - len(dump.frames), len(partial), len(unindexed))
+    backup = _free_name(folder, INDEX + ".bak")
+    try:
+        os.link(path, backup)  # (the old index's file itself: the rename below gives the new one its name)
+    except OSError:  # a file system without hard links
+        _write_file(backup, path.read_bytes())
+    tmp_index = folder / (INDEX + ".repair")
+    _write_file(tmp_index, (yaml.safe_dump(header, sort_keys=False) + "frames:\n" + "".join(lines)).encode())
+    os.replace(tmp_index, path)
+    keep = {(folder / r.file).resolve() for r in listed}
+    strays = [p for p in sorted(frames_dir.iterdir()) if p.resolve() not in keep and (p.is_file() or p.is_symlink())]
+    if strays:
+        orphans = folder / ORPHANS
+        orphans.mkdir(exist_ok=True)
+        for p in strays:
+            os.replace(p, _free_name(orphans, p.name))  # (a symlink moves as the link itself)
+    return RepairReport(len(listed), len(entries) - len(listed), recovered, len(strays), backup.name)
+
+
+def _complete_png(path: Path) -> bool:
+    """Whether a PNG file is whole: its signature, and an IEND chunk ending it (a write cut short has none)."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(8)
+            f.seek(max(0, path.stat().st_size - 12))
+            tail = f.read(12)
+    except OSError:
+        return False
+    return head == b"\x89PNG\r\n\x1a\n" and tail[4:8] == b"IEND"
+
+
+def _free_name(folder: Path, name: str) -> Path:
+    """folder / name, or name.1, name.2, ... : the first that does not exist (nothing is overwritten)."""
+    candidate = folder / name
+    n = 0
+    while candidate.exists() or candidate.is_symlink():
+        n += 1
+        candidate = folder / f"{name}.{n}"
+    return candidate
+
+
+def _index_entries(path: Path) -> list:
+    """The frame entries of an index's complete lines, as the reader parses them (read_dump checked them)."""
+    text = path.read_bytes().decode("utf-8", errors="replace")
+    meta = yaml.safe_load(text[: text.rfind("\n") + 1])
+    entries = meta.get("frames") if isinstance(meta, dict) else None
+    return entries if isinstance(entries, list) else []

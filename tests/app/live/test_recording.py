@@ -154,10 +154,13 @@ def test_kill_9_at_random_points_leaves_a_readable_dump(tmp_path, png_level):
         for i in range(len(dump.frames)):
             assert dump.load_frame(i).shape == (120, 160, 3)
         report = repair_dump(folder)
-        assert report.frames == len(dump.frames)
+        # (a kill between a frame's index entry and its rename leaves it complete: repair renames it into place)
+        assert report.frames == len(dump.frames) + report.recovered and report.recovered <= 1
         assert not list((folder / "frames").glob("*.tmp.png"))
         again = read_dump(folder)
-        assert len(again.frames) == len(dump.frames) and again.dropped_tail == 0
+        assert len(again.frames) == report.frames and again.dropped_tail == 0
+        for i in range(len(again.frames)):
+            assert again.load_frame(i).shape == (120, 160, 3)
         assert (folder / "dump.yaml").read_text().endswith("\n")
 
 
