@@ -188,7 +188,8 @@ class LivePipeline:
     """Run a capture loop and decode its sets on worker threads; results go to `on_result`.
 
     make_loop: builds the CaptureLoop *on the acquisition thread* (a pyglet projector window must
-    be used by the thread that opened it). max_frames: stop after that many camera frames.
+    be used by the thread that opened it). max_frames: stop after that many camera frames; max_recorded:
+    after that many frames handed to the recorder (confirmed frames only: refused ones are not counted).
     on_result: called on a worker thread with every LiveResult (keep it short: store, don't draw).
     processor None: no decoding (recording only).
     """
@@ -201,6 +202,7 @@ class LivePipeline:
         workers: int = 1,
         queue_sets: int = 1,
         max_frames: int | None = None,
+        max_recorded: int | None = None,
         recorder: Recorder | None = None,
         on_result: Callable[[LiveResult], None] | None = None,
         on_frame: Callable[[Frame], None] | None = None,
@@ -209,6 +211,7 @@ class LivePipeline:
         self.processor = processor
         self.workers = max(1, workers)
         self.max_frames = max_frames
+        self.max_recorded = max_recorded
         self.recorder = recorder
         self.on_result = on_result
         self.on_frame = on_frame
@@ -307,10 +310,14 @@ class LivePipeline:
                     # Only frames whose tag is certain are recorded: a dump is decoded offline
                     # without these checks. Tagged frames never confirmed are counted (stats).
                     for f in ev.confirmed if rec is not None else ():
+                        if self.max_recorded is not None and self.stats.recorded >= self.max_recorded:
+                            break
                         if rec.put(f):
                             self.stats.recorded += 1
                 if ev.frameset is not None and self.processor is not None:
                     self._push_set(ev.frameset)
+                if self.max_recorded is not None and self.stats.recorded >= self.max_recorded:
+                    break
         except SlscanError as exc:
             if type(exc).__name__ != "EndOfDumpError":  # a replay that reached its end is a normal end
                 self.error = str(exc)

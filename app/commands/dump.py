@@ -37,7 +37,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--config", metavar="FILE", help="rig configuration (default: config/sim.yaml, the virtual rig)")
     p.add_argument("--scheme", choices=SCHEMES, help="pattern scheme (default: the config's scheme.name)")
-    p.add_argument("--frames", type=positive_int, metavar="N", help="number of camera frames to record")
+    p.add_argument("--frames", type=positive_int, metavar="N", help="number of frames to record (confirmed frames: capture goes on past refused ones)")
     p.add_argument("--out", metavar="DIR", help="the new dump folder (must not exist, or be empty)")
     p.add_argument("--png-level", type=int, default=0, metavar="L", help="PNG compression 0..9 (default 0: fastest)")
     p.add_argument(
@@ -73,7 +73,10 @@ def run(args: argparse.Namespace) -> int:
     except BaseException:
         recorder.close()
         raise
-    pipe = LivePipeline(lambda: loop, None, max_frames=args.frames)
+    # N frames recorded, not N camera frames: refused frames are never recorded, so capture goes on past them,
+    # up to a bound that ends a session whose frames keep being refused
+    camera_limit = 2 * args.frames + 120
+    pipe = LivePipeline(lambda: loop, None, max_frames=camera_limit, max_recorded=args.frames)
     pipe.set_recorder(recorder)
     print(f"slscan dump: {session.scheme} frames from {describe(session)} -> {args.out}", file=sys.stderr)
     interrupted = False
@@ -112,4 +115,11 @@ def run(args: argparse.Namespace) -> int:
     if interrupted:
         print("slscan dump: interrupted; the dump is finalised", file=sys.stderr)
         return 130
+    if pipe.stats.recorded < args.frames:
+        print(
+            f"slscan dump: stopped after {cap.frames} camera frames with {pipe.stats.recorded} of {args.frames} "
+            f"frames recorded ({cap.refused} refused, {cap.dropped} dropped); the dump is finalised",
+            file=sys.stderr,
+        )
+        return 2
     return 0

@@ -207,3 +207,19 @@ def test_ctrl_c_stops_slscan_dump_cleanly(tmp_path, slscan_process):
     dump = read_dump(out)
     assert len(dump.frames) >= 4 and dump.dropped_tail == 0
     assert not list((out / "frames").glob("*.tmp.png"))
+
+
+@pytest.mark.parametrize("frames", [2, 20])
+def test_slscan_dump_frames_n_records_n_frames_past_refused_ones(tmp_path, capsys, frames):
+    """A duplicated frame is refused (never recorded): capture goes on until N frames are recorded."""
+    out = tmp_path / "rec"
+    cfg = small_config(tmp_path, faults=[{"kind": "duplicate", "at": [3, 9]}])
+    code = main(["dump", "--config", cfg, "--frames", str(frames), "--out", str(out)])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    dump = read_dump(out)
+    assert len(dump.frames) == frames
+    ids = [f.frame_id for f in dump.frames]
+    assert ids == sorted(set(ids))
+    if frames == 20:
+        assert "refused 1" in captured.out or "refused 2" in captured.out, captured.out  # the faults were seen
