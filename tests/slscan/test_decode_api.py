@@ -137,3 +137,23 @@ def test_a_dump_without_calibration_and_a_missing_dump_are_input_errors(tmp_path
         slscan.read_dump(tmp_path)
     with pytest.raises(slscan.InputError, match="a calibration is needed"):
         slscan.Decoder(plane_dump / "patterns", None)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("suffix", [".xml", ".json.gz"])
+def test_a_calibration_converted_by_opencv_decodes_the_same(dump, decoder, plane_dump, tmp_path, suffix):
+    src = cv2.FileStorage(str(plane_dump / "calibration.yaml"), cv2.FILE_STORAGE_READ)  # our own file: trusted
+    out = cv2.FileStorage(str(tmp_path / f"cal{suffix}"), cv2.FILE_STORAGE_WRITE)
+    for key in src.root().keys():
+        node = src.getNode(key)
+        if key.endswith("_size"):  # as a cv::Size: a FileStorage sequence [ w, h ]
+            out.startWriteStruct(key, cv2.FILE_NODE_SEQ | cv2.FILE_NODE_FLOW)
+            for v in node.mat().ravel():
+                out.write("", int(v))
+            out.endWriteStruct()
+        else:
+            out.write(key, node.mat() if node.isMap() else node.real())
+    out.release()
+    src.release()
+    frames = dump.frame_sets()[0]
+    other = slscan.Decoder(dump.patterns, tmp_path / f"cal{suffix}", dump.depth_range_mm)
+    assert np.array_equal(other.decode(frames).depth, decoder.decode(frames).depth)
