@@ -53,7 +53,12 @@ def _one_line_warning(message: Warning | str, category: type[Warning], *_: objec
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    warnings.showwarning = _one_line_warning
+    with warnings.catch_warnings():  # (restored on return: an in-process caller keeps its own warning handling)
+        warnings.showwarning = _one_line_warning
+        return _main(argv)
+
+
+def _main(argv: Sequence[str] | None) -> int:
     try:
         parser = build_parser()  # (imports every command: a missing or too old library is said here)
     except SlscanError as exc:

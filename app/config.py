@@ -9,6 +9,7 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from app.config_keys import check_config_keys
 from core.errors import InputError
 from core.resources import CONFIG_DIR
 from core.yamlfile import load_yaml_mapping
@@ -61,4 +62,6 @@ def load_config(path: str | os.PathLike | None = None) -> Config:
             path = bundled
     if not path.is_file():
         raise InputError(f"{path}: config file not found (bundled configs: {', '.join(bundled_configs())})")
-    return Config(path, load_yaml_mapping(path))
+    data = load_yaml_mapping(path)
+    check_config_keys(path, data)
+    return Config(path, data)

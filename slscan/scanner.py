@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from app.config import Config
+from app.config_keys import check_config_keys
 from app.decode.pipeline import average_frames_of
 from app.live_pipeline import DECODE_WORKERS, LivePipeline, LiveResult
 from app.owner_thread import HandOver
@@ -47,7 +48,9 @@ class Scanner:
         buffer: int = 4,
     ) -> None:
         if isinstance(config, Mapping):
-            config = Config(Path("<config mapping>"), dict(config))  # relative paths: from the working directory
+            where = Path("<config mapping>")  # (relative paths in it: from the working directory)
+            check_config_keys(where, dict(config))
+            config = Config(where, dict(config))
         self._session = build_session(config, scheme=scheme)
         self.workers = max(1, int(workers))
         self.timeout_s = float(timeout_s)
