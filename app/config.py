@@ -9,10 +9,11 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from app.config_keys import check_config_keys
 from core.errors import InputError
+from core.resources import CONFIG_DIR
 from core.yamlfile import load_yaml_mapping
 
-CONFIG_DIR = Path(__file__).resolve().parent.parent / "config"
 DEFAULT_CONFIG = CONFIG_DIR / "sim.yaml"
 
 
@@ -46,8 +47,21 @@ class Config:
         return node
 
 
+def bundled_configs() -> list[str]:
+    """The names of the configs that come with slscan (config/*.yaml), e.g. sim, sim_turntable."""
+    return sorted(p.stem for p in CONFIG_DIR.glob("*.yaml"))
+
+
 def load_config(path: str | os.PathLike | None = None) -> Config:
+    """A config file; None is the virtual rig (sim.yaml). A bare name that is not a file names a bundled config
+    (`--config sim_turntable`), so they work from any folder, installed or not."""
     path = Path(path) if path is not None else DEFAULT_CONFIG
+    if not path.is_file() and path.parent == Path(".") and path.suffix in ("", ".yaml"):
+        bundled = CONFIG_DIR / f"{path.stem}.yaml"
+        if bundled.is_file():
+            path = bundled
     if not path.is_file():
-        raise InputError(f"{path}: config file not found")
-    return Config(path, load_yaml_mapping(path))
+        raise InputError(f"{path}: config file not found (bundled configs: {', '.join(bundled_configs())})")
+    data = load_yaml_mapping(path)
+    check_config_keys(path, data)
+    return Config(path, data)

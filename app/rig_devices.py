@@ -3,10 +3,12 @@
 
 from __future__ import annotations
 
+import inspect
 from typing import Any
 
 from app.config import Config
 from core.errors import InputError
+from core.suggest import unknown_name_hint
 from drivers import registry as driver_registry
 
 
@@ -26,7 +28,25 @@ def rig_driver(cfg: Config, kind: str, registry: dict, required: bool = True) ->
     if name not in registry:
         known = ", ".join(sorted(registry))
         raise InputError(f"{cfg.path}: key 'rig.{kind}.driver': unknown driver {name!r} (known: {known})")
-    return name, {k: v for k, v in sec.items() if k != "driver"}
+    options = {k: v for k, v in sec.items() if k != "driver"}
+    _check_options(cfg, kind, registry[name], options)
+    return name, options
+
+
+def _check_options(cfg: Config, kind: str, factory: Any, options: dict) -> None:
+    """An option the driver's factory does not take is an error naming it and the nearest one it takes (a typo
+    would otherwise surface only when the device opens, as a TypeError)."""
+    try:
+        params = inspect.signature(factory).parameters.values()
+    except (TypeError, ValueError):  # (a factory without a signature: the call itself will say)
+        return
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params):
+        return
+    known = {p.name for p in params if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
+    for key in options:
+        if key not in known:
+            hint = unknown_name_hint(str(key), known, f"rig.{kind}.")
+            raise InputError(f"{cfg.path}: key 'rig.{kind}.{key}' is unknown to its driver{hint}")
 
 
 def make_device(cfg: Config, kind: str, registry: dict, name: str, options: dict) -> Any:

@@ -120,6 +120,59 @@ def fit_moebius(nodes: np.ndarray) -> tuple[np.ndarray, float]:
     return coef.astype(np.float32), worst
 
 
+FIELD_MARGIN = 0.25  # share of the projector's field added on each side: the image's edge columns stay inside it
+
+
+def _projector_field(calibration: Calibration) -> tuple[float, float, float, float]:
+    """(x0, x1, y0, y1): a box in the projector's undistorted normalised coordinates around its image, widened by
+    FIELD_MARGIN. Every column the projector can show is inside it; far outside it a distortion polynomial folds back
+    (u stops being monotone along a ray), and those depths can never be lit anyway."""
+    w, h = calibration.projector_size
+    t = np.linspace(0.0, 1.0, 33)
+    border = np.concatenate(
+        [
+            np.stack([t * (w - 1), np.zeros_like(t)], 1),
+            np.stack([t * (w - 1), np.full_like(t, h - 1)], 1),
+            np.stack([np.zeros_like(t), t * (h - 1)], 1),
+            np.stack([np.full_like(t, w - 1), t * (h - 1)], 1),
+        ]
+    ).reshape(-1, 1, 2)
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-10)
+    und = cv2.undistortPoints(
+        border, calibration.projector_matrix, calibration.projector_distortion, None, None, None, crit
+    ).reshape(-1, 2)
+    (x0, y0), (x1, y1) = und.min(axis=0), und.max(axis=0)
+    mx, my = FIELD_MARGIN * (x1 - x0), FIELD_MARGIN * (y1 - y0)
+    return float(x0 - mx), float(x1 + mx), float(y0 - my), float(y1 + my)
+
+
+def _extend_outside(nodes: np.ndarray, inside: np.ndarray) -> np.ndarray:
+    """The nodes with those outside the projector's field replaced by a linear extension (in the node index, i.e. in
+    inverse depth) of the first and last lit intervals: a ray's column stays monotone past the field's edge, where
+    the true column may fold back, and moves away from the image, so no decoded column falls there. A ray lit at
+    fewer than two nodes (it grazes the field) gets NaN."""
+    K = nodes.shape[2]
+    out = nodes.copy()
+    idx = np.arange(K)
+    lit_count = inside.sum(axis=2)
+    first = np.argmax(inside, axis=2)
+    last = K - 1 - np.argmax(inside[:, :, ::-1], axis=2)
+    ok = lit_count >= 2
+    f = np.minimum(first, K - 2)
+    lmax = np.maximum(last, 1)
+    a0 = np.take_along_axis(nodes, f[..., None], 2)[..., 0]
+    a1 = np.take_along_axis(nodes, (f + 1)[..., None], 2)[..., 0]
+    b0 = np.take_along_axis(nodes, (lmax - 1)[..., None], 2)[..., 0]
+    b1 = np.take_along_axis(nodes, lmax[..., None], 2)[..., 0]
+    with np.errstate(invalid="ignore"):
+        before = a0[..., None] + (idx - f[..., None]) * (a1 - a0)[..., None]
+        after = b1[..., None] + (idx - lmax[..., None]) * (b1 - b0)[..., None]
+    out = np.where(idx < first[..., None], before, out)
+    out = np.where(idx > last[..., None], after, out)
+    out[~ok] = np.nan
+    return out.astype(np.float32)
+
+
 @dataclass
 class PointCloud:
     xyz: np.ndarray  # (N, 3) float32 mm, camera coordinates
@@ -147,23 +200,37 @@ class Triangulator:
         crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-10)
         und = cv2.undistortPoints(pts, calibration.camera_matrix, calibration.camera_distortion, None, None, None, crit)
         self.ray = und.reshape(h, w, 2).astype(np.float32)  # normalised (x/z, y/z) per pixel
-        self.w0 = 1.0 / near
+        self._field = _projector_field(calibration)
+        # The table spans only the depths at which some camera ray meets the projector's field: beyond them nothing
+        # is lit, and a range reaching far past them (a near end of 50 mm on the virtual rig) spread the nodes over
+        # depths no stripe can come from, losing the interpolation budget there.
+        lit = self._lit_range(near, far)
+        if lit is None:
+            raise InputError(
+                f"depth range {near:g}-{far:g} mm: no camera pixel sees the projector's image at these depths "
+                "(check depth_range_mm and the calibration)"
+            )
+        t_near, t_far = lit
+        self.table_range_mm = (t_near, t_far)
+        self.w0 = 1.0 / t_near
         K = 9
         while True:
-            self.dw = (1.0 / far - 1.0 / near) / (K - 1)
+            self.dw = (1.0 / t_far - 1.0 / t_near) / (K - 1)
             nodes = np.empty((h, w, K), np.float32)
+            inside = np.empty((h, w, K), bool)
             for i in range(K):
-                nodes[:, :, i] = self._project_u(self.ray, self.w0 + i * self.dw)
-            err = self._midpoint_error(nodes, K)
+                nodes[:, :, i], inside[:, :, i] = self._project_u(self.ray, self.w0 + i * self.dw, with_inside=True)
+            err = self._midpoint_error(nodes, inside, K)
             if err <= max_error_px or K >= max_nodes:
                 break
             K = 2 * K - 1
-        self.nodes = nodes
         self.interp_error_px = err
-        inc = nodes[:, :, -1] > nodes[:, :, 0]
-        steps = np.diff(nodes, axis=2)
+        self.nodes = _extend_outside(nodes, inside)
+        inc = self.nodes[:, :, -1] > self.nodes[:, :, 0]
+        steps = np.diff(self.nodes, axis=2)
         monotone = np.where(inc, (steps > 0).all(axis=2), (steps < 0).all(axis=2))
-        self.nodes[~monotone] = np.nan  # rays along which the projector column is not monotone
+        self.nodes[~monotone] = np.nan  # rays along which the projector column is not monotone where it is lit
+        nodes = self.nodes
         self.column_lo = np.minimum(nodes[:, :, 0], nodes[:, :, -1]).astype(np.float32)
         self.column_hi = np.maximum(nodes[:, :, 0], nodes[:, :, -1]).astype(np.float32)
         coef, dev = fit_moebius(self.nodes)
@@ -174,7 +241,7 @@ class Triangulator:
                 t = (i + 0.5) / (K - 1)
                 true = self._project_u(self.ray[::8, ::8], self.w0 + (i + 0.5) * self.dw)
                 pred = (sub[..., 0] + sub[..., 1] * t) / (1 + sub[..., 2] * t)
-                d = np.abs(pred - true)
+                d = np.where(inside[::8, ::8, i] & inside[::8, ::8, i + 1], np.abs(pred - true), np.nan)
                 if np.isfinite(d).any():
                     dev = max(dev, float(np.nanmax(d)))
         self.moebius_error_px = dev
@@ -184,8 +251,11 @@ class Triangulator:
         if dev <= 0.5 * max_error_px:
             self.moebius = np.ascontiguousarray(coef.transpose(2, 0, 1), np.float32)
 
-    def _project_u(self, ray: np.ndarray, w: float) -> np.ndarray:
-        """Distorted projector column of the points at inverse depth w on the given camera rays."""
+    def _project_u(
+        self, ray: np.ndarray, w: float, with_inside: bool = False
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        """Distorted projector column of the points at inverse depth w on the given camera rays; with_inside, also
+        whether each point lies in the projector's field (in front of it, undistorted within _projector_field)."""
         cal = self.calibration
         r = ray.astype(np.float64)
         Rm = cal.R
@@ -194,23 +264,44 @@ class Triangulator:
         X = z * (Rm[0, 0] * r[..., 0] + Rm[0, 1] * r[..., 1] + Rm[0, 2]) + cal.T[0]
         Y = z * (Rm[1, 0] * r[..., 0] + Rm[1, 1] * r[..., 1] + Rm[1, 2]) + cal.T[1]
         Z = z * (Rm[2, 0] * r[..., 0] + Rm[2, 1] * r[..., 1] + Rm[2, 2]) + cal.T[2]
-        x = X / Z
-        y = Y / Z
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = X / Z
+            y = Y / Z
         k1, k2, p1, p2, k3 = cal.projector_distortion
         r2 = x * x + y * y
         radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
         xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
         yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
         K = cal.projector_matrix
-        return K[0, 0] * xd + K[0, 1] * yd + K[0, 2]
+        u = K[0, 0] * xd + K[0, 1] * yd + K[0, 2]
+        if not with_inside:
+            return u
+        x0, x1, y0, y1 = self._field
+        return u, (Z > 0) & (x >= x0) & (x <= x1) & (y >= y0) & (y <= y1)
 
-    def _midpoint_error(self, nodes: np.ndarray, K: int) -> float:
+    def _lit_range(self, near: float, far: float, steps: int = 257) -> tuple[float, float] | None:
+        """The part of [near, far] mm in which some camera ray (of a subsample) meets the projector's field, widened
+        by one step of a fine grid in inverse depth; None if no ray does."""
+        ws = np.linspace(1.0 / far, 1.0 / near, steps)
+        sub = self.ray[::4, ::4]
+        seen = np.array([self._project_u(sub, w, with_inside=True)[1].any() for w in ws])
+        if not seen.any():
+            return None
+        idx = np.flatnonzero(seen)
+        lo, hi = max(idx[0] - 1, 0), min(idx[-1] + 1, steps - 1)  # ws rises: lo is the far end
+        return (near if hi == steps - 1 else 1.0 / ws[hi]), (far if lo == 0 else 1.0 / ws[lo])
+
+    def _midpoint_error(self, nodes: np.ndarray, inside: np.ndarray, K: int) -> float:
+        """The largest error of linear interpolation at the interval midpoints, over intervals lit at both ends
+        (outside the projector's field the nodes are extended, not interpolated: _extend_outside)."""
         sub = self.ray[::8, ::8]
         worst = 0.0
         for i in range(K - 1):
             true = self._project_u(sub, self.w0 + (i + 0.5) * self.dw)
             interp = 0.5 * (nodes[::8, ::8, i] + nodes[::8, ::8, i + 1])
-            worst = max(worst, float(np.nanmax(np.abs(true - interp))))
+            both = inside[::8, ::8, i] & inside[::8, ::8, i + 1]
+            if both.any():
+                worst = max(worst, float(np.nanmax(np.abs(true - interp)[both])))
         return worst
 
     @property

@@ -12,9 +12,10 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import yaml
 
 from core.errors import InputError
+from core.filestorage import number as _number
+from core.filestorage import read_filestorage
 
 RMS_KEYS = ("camera_rms", "projector_rms", "stereo_rms")
 
@@ -61,6 +62,7 @@ class Calibration:
         if not fs.isOpened():
             raise InputError(f"{path}: cannot write calibration (check the folder exists and is writable)")
         try:
+            _write_conventions(fs, path)
             fs.write("camera_size", np.array(self.camera_size, np.int32).reshape(1, 2))
             fs.write("camera_matrix", self.camera_matrix)
             fs.write("camera_distortion", self.camera_distortion.reshape(1, 5))
@@ -83,14 +85,14 @@ class Calibration:
         path = Path(path)
         if not path.is_file():
             raise InputError(f"{path}: calibration file not found")
-        doc = read_filestorage_yaml(path)
+        doc = read_filestorage(path)
 
         def mat(key: str, shape: tuple[int, ...]) -> np.ndarray:
             if key not in doc:
                 raise InputError(f"{path}: missing field '{key}'")
-            m = doc[key]
-            if not isinstance(m, np.ndarray):
-                raise InputError(f"{path}: field '{key}' is not a matrix")
+            m = _as_matrix(doc[key])
+            if m is None:
+                raise InputError(f"{path}: field '{key}' is not a matrix or a sequence of numbers")
             if m.size != int(np.prod(shape)):
                 raise InputError(f"{path}: field '{key}' has {m.size} values, expected {int(np.prod(shape))}")
             if not np.all(np.isfinite(m)):
@@ -154,19 +156,6 @@ KNOWN_KEYS = {
 }  # fmt: skip
 
 
-def _number(value: object) -> float | None:
-    if isinstance(value, bool):
-        return None
-    if isinstance(value, int | float):
-        return float(value)
-    if isinstance(value, str):  # PyYAML leaves e.g. "1e-05" (no dot) as a string
-        try:
-            return float(value)
-        except ValueError:
-            return None
-    return None
-
-
 def _extra(doc: dict) -> dict[str, np.ndarray | float]:
     """Every other top-level number or matrix (e.g. camera_gamma, response curves) into `extra`."""
     extra: dict[str, np.ndarray | float] = {}
@@ -181,59 +170,43 @@ def _extra(doc: dict) -> dict[str, np.ndarray | float]:
     return extra
 
 
-class _BadMatrixError(ValueError):
-    pass
+def _as_matrix(value: object) -> np.ndarray | None:
+    """A matrix, or a FileStorage sequence of numbers (`camera_size: [ 640, 480 ]`, what OpenCV writes for a
+    cv::Size or a std::vector), flat or nested, as an array; None for anything else."""
+    if isinstance(value, np.ndarray):
+        return value
+    if not isinstance(value, list) or not value:
+        return None
+    flat: list[object] = []
+    stack = [value]
+    while stack:  # (nested lists: rows of a matrix, as other tools write it in JSON)
+        item = stack.pop()
+        if isinstance(item, list):
+            stack.extend(reversed(item))
+        else:
+            flat.append(item)
+    numbers = [_number(v) for v in flat]
+    if any(v is None for v in numbers):
+        return None
+    return np.array(numbers, np.float64)
 
 
-class _FileStorageLoader(yaml.SafeLoader):
-    """PyYAML's safe loader plus OpenCV's `!!opencv-matrix` tag (rows, cols, dt, data)."""
+CONVENTIONS = (  # (no apostrophes: OpenCV writes them into JSON as \\', which is not JSON)
+    "slscan calibration in OpenCV conventions: pinhole with k1 k2 p1 p2 k3 distortion, pixels, millimetres",
+    "R, T: the pose of the projector seen from the camera: X_projector = R * X_camera + T (as cv2.stereoCalibrate, "
+    "camera first); T in mm",
+    "camera_size, projector_size: [w, h] px; *_matrix: intrinsics in px; *_rms: reprojection errors in px",
+)
 
 
-def _construct_matrix(loader: yaml.SafeLoader, node: yaml.Node) -> np.ndarray:
-    if not isinstance(node, yaml.MappingNode):
-        raise _BadMatrixError("an opencv-matrix must be a mapping")
-    m = loader.construct_mapping(node, deep=True)
-    rows, cols, data = m.get("rows"), m.get("cols"), m.get("data")
-    if not (isinstance(rows, int) and isinstance(cols, int) and 0 < rows <= 4096 and 0 < cols <= 4096):
-        raise _BadMatrixError("an opencv-matrix needs positive integer rows and cols")
-    if not isinstance(data, list) or len(data) != rows * cols:
-        raise _BadMatrixError(f"an opencv-matrix of {rows}x{cols} needs {rows * cols} data values")
-    values = [_number(v) for v in data]
-    if any(v is None for v in values):
-        raise _BadMatrixError("an opencv-matrix has a value that is not a number")
-    return np.array(values, np.float64).reshape(rows, cols)
-
-
-_FileStorageLoader.add_constructor("tag:yaml.org,2002:opencv-matrix", _construct_matrix)
-
-
-def read_filestorage_yaml(path: Path) -> dict:
-    """Read an OpenCV FileStorage YAML file in Python.
-
-    OpenCV's own parser aborts the whole process (heap corruption) on some malformed files, so a
-    calibration written by cv2.FileStorage is read back with PyYAML's safe loader instead.
-    """
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except (OSError, UnicodeDecodeError):
-        raise InputError(f"{path}: not a text (OpenCV FileStorage YAML) calibration file") from None
-    lines = text.splitlines()
-    if lines and lines[0].startswith("%YAML"):  # OpenCV writes "%YAML:1.0" or "%YAML 1.2"
-        lines = lines[1:]
-    try:
-        loader = _FileStorageLoader("\n".join(lines))
-        try:
-            doc = loader.get_single_data()
-        finally:
-            loader.dispose()
-    except _BadMatrixError as exc:
-        raise InputError(f"{path}: {exc}") from None
-    except (yaml.YAMLError, ValueError, TypeError, RecursionError) as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise InputError(f"{path}: not an OpenCV FileStorage YAML calibration ({first})") from None
-    if not isinstance(doc, dict):
-        raise InputError(f"{path}: not an OpenCV FileStorage YAML calibration (expected a mapping)")
-    return doc
+def _write_conventions(fs: cv2.FileStorage, path: Path) -> None:
+    """Say what R, T mean and the units: as comments (YAML, XML), as a string field in JSON (which has none)."""
+    name = path.name.lower().removesuffix(".gz")
+    if name.endswith(".json"):
+        fs.write("conventions", " / ".join(CONVENTIONS))
+        return
+    for line in CONVENTIONS:
+        fs.writeComment(line)
 
 
 def _dist5(d: np.ndarray) -> np.ndarray:

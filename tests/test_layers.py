@@ -1,7 +1,8 @@
-"""The import graph of app/, core/, drivers/ and calibration/ keeps its layers one way.
+"""The import graph of app/, core/, drivers/, calibration/ and slscan/ keeps its layers one way.
 
 core/ (errors, file formats, patterns) imports nothing of ours but itself; drivers/ imports only
-core/ and drivers/; no module imports, even lazily, one that imports it back. Every `.py` file is
+core/ and drivers/; slscan/ (the public API) sits on top: nothing else imports it; no module imports,
+even lazily, one that imports it back. Every `.py` file is
 parsed (nothing is imported), so a lazy import inside a function counts too.
 """
 
@@ -11,7 +12,7 @@ import ast
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("app", "core", "drivers", "calibration")
+PACKAGES = ("app", "core", "drivers", "calibration", "slscan")
 KNOWN_EXCEPTIONS: set[tuple[str, str]] = set()  # (importer, imported) edges allowed against the layers
 
 
@@ -94,6 +95,12 @@ def test_calibration_does_not_reach_into_the_cli_or_the_view():
         if t.startswith(("app.commands", "app.view", "app.cli"))
     }
     assert not wrong, sorted(wrong)
+
+
+def test_only_the_public_api_imports_the_public_api():
+    wrong = {(m, t) for m, ts in GRAPH.items() if _layer(m) != "slscan" for t in ts if _layer(t) == "slscan"}
+    assert not wrong, sorted(wrong)
+    assert "app.decode.pipeline" in GRAPH["slscan.decoder"]
 
 
 def test_no_import_cycles():

@@ -12,7 +12,7 @@ from pathlib import Path
 import cv2
 
 from app.argtypes import non_negative_int
-from app.decode.pipeline import EmptyResultWarning, FrameSetDecoder
+from app.decode.pipeline import DepthRangeWarning, EmptyResultWarning, FrameSetDecoder
 from app.export import depth_preview, stripe_colours, write_depth_png16, write_depth_tiff, write_ply, write_png
 from app.framesets import FrameIndexSet, group_frame_sets
 from app.fsutil import atomic_directory
@@ -79,6 +79,7 @@ def _init(
 ) -> None:
     _quiet_opencv()
     warnings.simplefilter("ignore", EmptyResultWarning)
+    warnings.simplefilter("ignore", DepthRangeWarning)  # said once, by run()
     _STATE["dump"] = read_dump(folder)
     _STATE["decoder"] = FrameSetDecoder(scheme, meta, cal, rng, seg, motion)
     _STATE["range"] = rng
@@ -125,6 +126,8 @@ def run(args: argparse.Namespace) -> int:
     seg = getattr(args, "segmentation", None)
     motion = getattr(args, "motion", "auto")
     _init(str(dump.folder), dump.scheme, meta, cal, rng, seg, motion)
+    if _STATE["decoder"].depth_range_problem is not None:
+        print(f"slscan decode: warning: {_STATE['decoder'].depth_range_problem}", file=sys.stderr)
     workers = args.workers or os.cpu_count() or 1
     empty = 0
     with atomic_directory(args.out) as tmp:
@@ -151,7 +154,8 @@ def run(args: argparse.Namespace) -> int:
         print(file=sys.stderr)
     if empty:
         print(
-            f"slscan decode: warning: {empty} frame set(s) decoded to an empty depth map (dark or unlit scene)",
+            f"slscan decode: warning: {empty} frame set(s) decoded to an empty depth map "
+            f"({_STATE['decoder'].empty_reason()})",
             file=sys.stderr,
         )
     skipped = (

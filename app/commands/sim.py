@@ -81,9 +81,11 @@ def parse_overrides(items: list[str]) -> dict:
 
 
 def run_scenes(args: argparse.Namespace) -> int:
-    from drivers.sim.scene import list_presets
+    from drivers.sim.scene import SCENES_DIR, list_presets
 
     presets = list_presets()
+    if not presets:
+        raise InputError(f"{SCENES_DIR}: no scene presets there (an incomplete installation: reinstall slscan)")
     width = max(len(n) for n, _ in presets)
     for name, desc in presets:
         print(f"{name:<{width}}  {desc}")

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.decode.colour import camera_gamma_of
+from app.decode.depth_range import check_depth_range, copy_columns
 from app.decode.fast import average_frames
 from app.decode.motion import MotionParams, MotionRepair, check_motion_mode
 from app.decode.stripemap import StripeMap
@@ -22,6 +23,10 @@ DEFAULT_DEPTH_RANGE_MM = (100.0, 5000.0)
 
 class EmptyResultWarning(UserWarning):
     """A frame set in which nothing could be decoded (black, empty or unlit scene)."""
+
+
+class DepthRangeWarning(UserWarning):
+    """A depth range that leaves the decoder nothing to find (app/decode/depth_range.py)."""
 
 
 @dataclass
@@ -56,6 +61,7 @@ class FrameSetDecoder:
         self.scheme = self.kind.name
         self.calibration = calibration
         self.triangulator = None
+        self.depth_range_problem: str | None = None
         column_range = None
         proj_w = int(pattern_meta["size"][0])
         mixing = None
@@ -68,10 +74,26 @@ class FrameSetDecoder:
                 )
             self.triangulator = Triangulator(calibration, depth_range_mm or DEFAULT_DEPTH_RANGE_MM)
             column_range = self.triangulator.column_range
+            # (a range that misses the projector's image everywhere is an InputError; one that allows every copy of
+            # the sequence decodes nothing, said here once and again with every empty result)
+            self.depth_range_problem = check_depth_range(
+                *column_range, proj_w, copy_columns(pattern_meta), self.triangulator.depth_range_mm
+            )
+            if self.depth_range_problem is not None:
+                warnings.warn(self.depth_range_problem, DepthRangeWarning, stacklevel=2)
             mixing = calibration.color_mixing
             gamma = camera_gamma_of(calibration)
         self.decoder = self.kind.make_decoder(pattern_meta, proj_w, mixing, column_range, segmentation, gamma)
         self.shots = self.decoder.shots
+
+    def empty_reason(self) -> str:
+        """Why a frame set may have decoded to nothing, as the end of a one-line message."""
+        if self.depth_range_problem is not None:
+            return self.depth_range_problem
+        if self.triangulator is None:
+            return "a dark, empty or unlit scene"
+        near, far = self.triangulator.depth_range_mm
+        return f"a dark, empty or unlit scene, or no surface inside the depth range {near:g}-{far:g} mm"
 
     def check_frames(self, frames: list[np.ndarray], where: str = "frame set") -> None:
         if len(frames) != self.shots:
@@ -146,11 +168,7 @@ class FrameSetDecoder:
         sm, depth = self.stripes_and_depth(frames, newest, previous)
         texture = average_frames_of(frames[0], frames[1]) if self.kind.shots == 2 else frames[0]  # stripes cancel
         if not sm.valid.any():
-            warnings.warn(
-                f"{where}: nothing decoded (dark, empty or unlit scene): empty depth map",
-                EmptyResultWarning,
-                stacklevel=2,
-            )
+            warnings.warn(f"{where}: nothing decoded: {self.empty_reason()}", EmptyResultWarning, stacklevel=2)
         cloud = None
         if self.triangulator is not None:
             cloud = self.triangulator.points(depth, texture)

@@ -39,7 +39,7 @@ from drivers.camera.errors import (
     UnsupportedFeatureError,
 )
 from drivers.camera.features import NodeFeatures, apply_settings, configure_trigger
-from drivers.camera.gentl import HUB, producer_paths
+from drivers.camera.gentl import HUB, producer_paths, require_genicam
 from drivers.camera.spec import as_bool
 
 FETCH_SLICE_S = 0.05  # grab() waits in slices so stop()/close() from another thread ends it promptly
@@ -184,6 +184,7 @@ class GenICamCamera:
         """Find the producer and device, open it exclusively and apply the settings (again after close)."""
         if self._ia is not None:
             return
+        require_genicam()
         from genicam.gentl import GenericException, ResourceInUseException
 
         files = producer_paths(self.cti, self.use_env)

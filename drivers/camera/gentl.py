@@ -13,20 +13,40 @@ from __future__ import annotations
 
 import atexit
 import ctypes
+import importlib
 import os
 import threading
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
+from core.errors import DeviceError
 from drivers.camera.errors import NoProducerError
 
 ENV_VAR = "GENICAM_GENTL64_PATH"
 VIKY = "viky"
 
 
+# GenICam support is optional: `genicam` has no wheel for some platforms (macOS on arm64), where slscan installs
+# without it (pyproject.toml) and everything but a GenICam camera works.
+GENICAM_PACKAGES = ("genicam", "harvesters")
+
+
+def require_genicam() -> None:
+    """DeviceError (one line, naming the package) unless the GenICam packages import."""
+    for name in GENICAM_PACKAGES:
+        try:
+            importlib.import_module(name)
+        except ImportError:
+            raise DeviceError(
+                f"GenICam cameras need the Python package '{name}', which is not installed: "
+                "pip install 'slscan[genicam]' (it has no wheel for some platforms, e.g. macOS on arm64)"
+            ) from None
+
+
 def viky_path() -> str:
     """The virtual GenTL producer inside the installed `genicam` package (three virtual cameras)."""
+    require_genicam()
     import genicam
 
     return os.path.join(os.path.dirname(genicam.__file__), "viky.cti")
@@ -100,6 +120,7 @@ class _Hub:
 
     def _harvester(self) -> Any:
         if self._h is None:
+            require_genicam()
             from harvesters.core import Harvester
 
             self._h = Harvester()

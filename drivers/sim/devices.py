@@ -26,6 +26,7 @@ from typing import NamedTuple
 import numpy as np
 
 from core.errors import DeviceError, InputError
+from core.suggest import unknown_name_hint
 from drivers.base import CAMERAS, PROJECTORS, TRIGGERS, CameraTimeoutError, Frame, register
 from drivers.sim.rig import PreparedPattern, VirtualRig
 
@@ -453,7 +454,7 @@ def bench_from_config(config: object) -> SimBench:
     where = f"{config.path}"
     for key in sim:
         if key not in SIM_KEYS:
-            raise InputError(f"{where}: key 'sim.{key}' is unknown (known: {', '.join(SIM_KEYS)})")
+            raise InputError(f"{where}: key 'sim.{key}' is unknown{unknown_name_hint(str(key), SIM_KEYS, 'sim.')}")
     opts: dict = {}
     for key in ("camera_size", "projector_size"):
         if key in sim:

@@ -32,12 +32,11 @@ import numpy as np
 import yaml
 
 from core.errors import InputError
+from core.resources import SCENES_DIR
 from core.yamlfile import load_yaml_mapping
 from drivers.sim.optics import Geometry
 from drivers.sim.shapes import Box, Cylinder, Ellipsoid, Material, Rectangle, Relief, Shape, Sphere
 from drivers.sim.textures import Bands, Charuco, Checkerboard, Patches, Stickers, Texture, Uniform
-
-SCENES_DIR = Path(__file__).resolve().parent.parent.parent / "config" / "scenes"
 
 
 class SceneError(InputError):

@@ -114,3 +114,30 @@ def test_closed_form_pass_gives_no_depth_where_the_column_has_none():
     _depth_from_column_moebius(u, a, b, c, w0, w_span, out)
     expect = [1000.0, 600.0, 1.0 / (w0 + 0.5 * w_span), 0.0, 0.0, 0.0, 0.0]  # range ends, middle, NaN, outside, 0/0
     assert np.allclose(out[0], expect, rtol=1e-6, atol=0.0)
+
+
+@pytest.mark.parametrize("near", [10.0, 50.0, 100.0])
+def test_a_near_end_close_to_the_rig_keeps_every_lit_pixel(small_rig, near):
+    """The virtual rig's true columns triangulate to its true depth with the near end far in front of the scene.
+
+    A near end of 50 mm used to give no depth at all: far outside the projector's field its distortion polynomial
+    folds back, so u(1/Z) was not monotone on any ray and every ray was refused. Only the lit part of a ray counts
+    now, and the table spans the depths at which the projector's field is seen at all."""
+    rig = small_rig("face", ideal=True)
+    rig.render(np.zeros((*rig.projector_size[::-1], 3), np.uint8))
+    gt = rig.ground_truth
+    lit = gt.lit & (gt.depth > 0)
+    tri = Triangulator(rig.calibration, (near, 5000.0))
+    assert tri.table_range_mm[0] > near  # nothing is lit at 10-50 mm in front of this camera
+    got = tri.depth(gt.column.astype(np.float32))
+    assert (got[lit] > 0).all()
+    # 33 nodes over 1/Z spread across a 50:1 depth range: ~0.15 px of interpolation, ~0.5 mm at 700 mm
+    assert np.abs(got[lit] - gt.depth[lit]).max() < 0.6
+    near_range = Triangulator(rig.calibration, rig.depth_range_mm).depth(gt.column.astype(np.float32))
+    assert np.abs(near_range[lit] - gt.depth[lit]).max() < 0.02  # the working volume is within the 0.01 px budget
+
+
+def test_a_depth_range_no_pixel_can_see_is_refused(small_rig):
+    rig = small_rig("plane", ideal=True)
+    with pytest.raises(InputError, match=r"depth range 1-5 mm: no camera pixel sees the projector"):
+        Triangulator(rig.calibration, (1.0, 5.0))
