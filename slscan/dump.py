@@ -82,7 +82,7 @@ class FrameSets(Sequence[FrameSet]):
             [index.load_frame(i) for i in s.indices],
             frame_ids=[r.frame_id for r in records],
             timestamps_ns=[r.timestamp_ns for r in records],
-            newest=s.newest,
+            newest=s.newest_index,
             previous=previous,
         )
 

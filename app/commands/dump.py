@@ -37,7 +37,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--config", metavar="FILE", help="rig configuration (default: config/sim.yaml, the virtual rig)")
     p.add_argument("--scheme", choices=SCHEMES, help="pattern scheme (default: the config's scheme.name)")
-    p.add_argument("--frames", type=positive_int, metavar="N", help="number of frames to record (confirmed frames: capture goes on past refused ones)")
+    p.add_argument(
+        "--frames",
+        type=positive_int,
+        metavar="N",
+        help="number of frames to record (confirmed frames: capture goes on past refused ones)",
+    )
     p.add_argument("--out", metavar="DIR", help="the new dump folder (must not exist, or be empty)")
     p.add_argument("--png-level", type=int, default=0, metavar="L", help="PNG compression 0..9 (default 0: fastest)")
     p.add_argument(
