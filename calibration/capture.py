@@ -28,6 +28,7 @@ from core.dump import Dump, DumpWriter, read_dump
 from core.errors import InputError
 from core.imageio import read_rgb, write_rgb
 from core.patterns import PatternSet
+from core.yamlfile import parse_yaml
 
 POSE_RE = re.compile(r"^pose_(\d{3,})$")
 RESPONSE_DIR = "response"
@@ -111,7 +112,7 @@ class Capture:
     def response_camera_gamma(self) -> float | None:
         """The camera gamma recorded with the levels (None: unknown, take the camera as linear)."""
         try:
-            doc = yaml.safe_load((self.folder / RESPONSE_DIR / LEVELS_FILE).read_text())
+            doc = parse_yaml((self.folder / RESPONSE_DIR / LEVELS_FILE).read_text())
         except (OSError, yaml.YAMLError, UnicodeDecodeError):
             return None
         g = doc.get("camera_gamma") if isinstance(doc, dict) else None
@@ -210,7 +211,7 @@ def write_levels(folder: Path, levels: list[tuple[str, int, np.ndarray]], camera
 def read_levels(folder: Path) -> list[tuple[str, int, np.ndarray]]:
     path = folder / LEVELS_FILE
     try:
-        doc = yaml.safe_load(path.read_text())
+        doc = parse_yaml(path.read_text())
     except (OSError, yaml.YAMLError, UnicodeDecodeError) as exc:
         raise InputError(f"{path}: not readable ({str(exc).splitlines()[0]})") from None
     if not isinstance(doc, dict) or doc.get("format") != LEVELS_FORMAT:

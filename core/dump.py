@@ -11,6 +11,7 @@ it takes out of `frames/` goes to `orphans/`, and the old index stays as `dump.y
 from __future__ import annotations
 
 import errno
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,6 +25,7 @@ from core.errors import InputError
 from core.imageio import encode_png, read_rgb
 from core.pattern_export import read_patterns, read_patterns_meta, write_patterns
 from core.patterns import PatternSet
+from core.yamlfile import parse_yaml
 
 FORMAT = "slscan-dump"
 VERSION = 1
@@ -207,7 +209,7 @@ def read_dump(folder: str | os.PathLike) -> Dump:
     if not text.endswith("\n"):
         text = text[: text.rfind("\n") + 1]  # a writer killed mid-line
     try:
-        meta = yaml.safe_load(text)
+        meta = parse_yaml(text)
     except yaml.YAMLError as exc:
         raise InputError(f"{path}: not valid YAML ({str(exc).splitlines()[0]})") from None
     if not isinstance(meta, dict):
@@ -223,10 +225,9 @@ def read_dump(folder: str | os.PathLike) -> Dump:
     if "calibration" in meta:
         _inside(folder, meta["calibration"], "calibration")
     rng = meta.get("depth_range_mm")
-    if rng is not None and not (
-        isinstance(rng, list) and len(rng) == 2 and all(isinstance(v, int | float) for v in rng) and 0 < rng[0] < rng[1]
-    ):
-        raise InputError(f"{path}: field 'depth_range_mm' must be [near, far] with 0 < near < far")
+    finite = isinstance(rng, list) and all(isinstance(v, int | float) and math.isfinite(v) for v in rng)
+    if rng is not None and not (finite and len(rng) == 2 and 0 < rng[0] < rng[1]):
+        raise InputError(f"{path}: field 'depth_range_mm' must be [near, far] with finite 0 < near < far")
     raw = meta.get("frames") or []
     if not isinstance(raw, list):
         raise InputError(f"{path}: field 'frames' must be a list")
@@ -236,7 +237,7 @@ def read_dump(folder: str | os.PathLike) -> Dump:
             rec = FrameRecord(
                 str(entry["file"]), int(entry["pattern"]), int(entry["frame_id"]), int(entry["timestamp_ns"])
             )
-        except (TypeError, KeyError, ValueError):
+        except (TypeError, KeyError, ValueError, OverflowError):  # (int() of .inf overflows)
             raise InputError(f"{path}: frames[{i}] needs file, pattern, frame_id and timestamp_ns") from None
         _inside(folder, rec.file, f"frames[{i}].file")
         if rec.pattern < 0:
@@ -395,6 +396,6 @@ def _free_name(folder: Path, name: str) -> Path:
 def _index_entries(path: Path) -> list:
     """The frame entries of an index's complete lines, as the reader parses them (read_dump checked them)."""
     text = path.read_bytes().decode("utf-8", errors="replace")
-    meta = yaml.safe_load(text[: text.rfind("\n") + 1])
+    meta = parse_yaml(text[: text.rfind("\n") + 1])
     entries = meta.get("frames") if isinstance(meta, dict) else None
     return entries if isinstance(entries, list) else []

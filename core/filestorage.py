@@ -30,6 +30,7 @@ import numpy as np
 import yaml
 
 from core.errors import InputError
+from core.yamlfile import BoundedLoader
 
 MAX_BYTES = 64 << 20  # a calibration is a few kB; response curves make it a few hundred
 MAX_MATRIX = 4096  # rows and cols
@@ -118,8 +119,8 @@ def number(value: object) -> float | None:
 # ---------------------------------------------------------------------------------------------- YAML
 
 
-class _Loader(yaml.SafeLoader):
-    """PyYAML's safe loader plus OpenCV's `!!opencv-matrix` tag."""
+class _Loader(BoundedLoader):
+    """PyYAML's safe loader (bounded in nesting: core/yamlfile.py) plus OpenCV's `!!opencv-matrix` tag."""
 
 
 def _construct_matrix(loader: yaml.SafeLoader, node: yaml.Node) -> np.ndarray:

@@ -12,6 +12,7 @@ from app.argtypes import non_negative_int, positive_int
 from app.schemes import get_scheme, pattern_options
 from core.errors import InputError
 from core.patterns import SCHEMES, make_patterns
+from core.yamlfile import parse_yaml
 
 HELP = "the virtual rig: render a frame dump with ground truth (render), list scene presets (scenes)"
 
@@ -74,7 +75,7 @@ def parse_overrides(items: list[str]) -> dict:
         if not sep or not key.strip():
             raise InputError(f"--set {item!r}: expected KEY=VALUE (e.g. ambient=0.3)")
         try:
-            out[key.strip()] = yaml.safe_load(value)
+            out[key.strip()] = parse_yaml(value)
         except yaml.YAMLError:
             raise InputError(f"--set {item!r}: the value is not a number, true/false or a [list]") from None
     return out

@@ -33,7 +33,7 @@ import yaml
 
 from core.errors import InputError
 from core.resources import SCENES_DIR
-from core.yamlfile import load_yaml_mapping
+from core.yamlfile import load_yaml_mapping, parse_yaml
 from drivers.sim.optics import Geometry
 from drivers.sim.shapes import Box, Cylinder, Ellipsoid, Material, Rectangle, Relief, Shape, Sphere
 from drivers.sim.textures import Bands, Charuco, Checkerboard, Patches, Stickers, Texture, Uniform
@@ -85,7 +85,7 @@ def list_presets(folder: Path = SCENES_DIR) -> list[tuple[str, str]]:
     out = []
     for p in sorted(folder.glob("*.yaml")):
         try:
-            data = yaml.safe_load(p.read_text())
+            data = parse_yaml(p.read_text())
             desc = str(data.get("description", "")).strip() if isinstance(data, dict) else ""
         except (yaml.YAMLError, OSError):
             desc = "(unreadable)"
