@@ -11,6 +11,7 @@ from collections.abc import Sequence
 from typing import NoReturn
 
 from app import commands
+from app.termination import Terminated, exit_status, stop_cleanly_on_sigterm
 from core.errors import SlscanError
 
 DESCRIPTION = """\
@@ -72,14 +73,17 @@ def _main(argv: Sequence[str] | None) -> int:
     if func is None:
         parser.print_help()
         return 2
+    stop_cleanly_on_sigterm()
     try:
         return int(func(args) or 0)
     except SlscanError as exc:
         print(f"slscan {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"slscan {args.command}: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        print(
+            f"slscan {args.command}: {'terminated' if isinstance(exc, Terminated) else 'interrupted'}", file=sys.stderr
+        )
+        return exit_status(exc)
 
 
 if __name__ == "__main__":

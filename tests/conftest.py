@@ -106,6 +106,7 @@ def _as_from_a_terminal() -> None:
     # started that way) inherits SIGINT ignored, and Python then installs no KeyboardInterrupt handler: the
     # child would never see the test's Ctrl-C. An operator's terminal runs slscan with SIGINT at its default.
     signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 @pytest.fixture

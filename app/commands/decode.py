@@ -35,6 +35,9 @@ decoded. Without a calibration only the stripe PNGs are written.
 _STATE: dict = {}
 
 
+MAX_WORKERS_PER_CORE = 2
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "decode", help=HELP, description=HELP, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -128,7 +131,10 @@ def run(args: argparse.Namespace) -> int:
     _init(str(dump.folder), dump.scheme, meta, cal, rng, seg, motion)
     if _STATE["decoder"].depth_range_problem is not None:
         print(f"slscan decode: warning: {_STATE['decoder'].depth_range_problem}", file=sys.stderr)
-    workers = args.workers or os.cpu_count() or 1
+    # no more processes than the sets left to decode (each costs ~80 MB and a decoder's set-up), nor than
+    # MAX_WORKERS_PER_CORE per core: more only queue for the same cores
+    cores = os.cpu_count() or 1
+    workers = min(args.workers or cores, MAX_WORKERS_PER_CORE * cores, max(1, len(sets) - 1))
     empty = 0
     with atomic_directory(args.out) as tmp:
         jobs = [(n, s, str(tmp), args.png16, args.preview) for n, s in enumerate(sets)]

@@ -9,6 +9,7 @@ import time
 from app.argtypes import positive_float, positive_int
 from app.live_pipeline import LivePipeline
 from app.owner_thread import HandOver
+from app.termination import Terminated, exit_status
 from core.dump import repair_dump
 from core.errors import InputError
 from core.patterns import SCHEMES
@@ -84,14 +85,14 @@ def run(args: argparse.Namespace) -> int:
     pipe = LivePipeline(lambda: loop, None, max_frames=camera_limit, max_recorded=args.frames)
     pipe.set_recorder(recorder)
     print(f"slscan dump: {session.scheme} frames from {describe(session)} -> {args.out}", file=sys.stderr)
-    interrupted = False
+    interrupted: KeyboardInterrupt | None = None
     t0 = time.monotonic()
     try:
         pipe.start()
         while pipe.running:
             hand_over.wait(0.2)
-    except KeyboardInterrupt:
-        interrupted = True
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (app/termination.py)
+        interrupted = exc
     finally:
         pipe.stop()
         while pipe.running:
@@ -117,9 +118,10 @@ def run(args: argparse.Namespace) -> int:
     if recorder.message:
         print(f"slscan dump: {recorder.message}", file=sys.stderr)
         return 2
-    if interrupted:
-        print("slscan dump: interrupted; the dump is finalised", file=sys.stderr)
-        return 130
+    if interrupted is not None:
+        how = "terminated" if isinstance(interrupted, Terminated) else "interrupted"
+        print(f"slscan dump: {how}; the dump is finalised", file=sys.stderr)
+        return exit_status(interrupted)
     if pipe.stats.recorded < args.frames:
         print(
             f"slscan dump: stopped after {cap.frames} camera frames with {pipe.stats.recorded} of {args.frames} "
