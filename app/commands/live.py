@@ -130,6 +130,12 @@ def run_headless(session: Session, args: argparse.Namespace, label: str = "live"
         return 2 if pipe.latest is None else 1
     if pipe.stop_reason:
         print(f"slscan {label}: stopped cleanly: {pipe.stop_reason}", file=sys.stderr)
+    if recorder is not None and recorder.stats.lost:  # a recording that lost frames is no success
+        print(
+            f"slscan {label}: {recorder.stats.lost} frame(s) NOT recorded: {recorder.message or 'see above'}",
+            file=sys.stderr,
+        )
+        return 2
     if interrupted:
         print(f"slscan {label}: interrupted; stopped cleanly", file=sys.stderr)
         return 130

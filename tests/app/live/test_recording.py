@@ -238,3 +238,28 @@ def test_sigterm_stops_slscan_dump_like_ctrl_c_with_its_summary(tmp_path, slscan
     assert "recorded" in stdout  # the summary, as after Ctrl-C
     dump = read_dump(out)
     assert len(dump.frames) >= 4 and dump.dropped_tail == 0
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 3 MB tmpfs (a disk that fills within a few frames); skipped where mounting is not allowed."""
+    mnt = tmp_path / "disk"
+    mnt.mkdir()
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=3m", "tmpfs", str(mnt)], capture_output=True)
+    if r.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {r.stderr.decode().strip()}")
+    try:
+        yield mnt
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], capture_output=True)
+
+
+def test_live_recording_into_a_full_disk_is_no_success(tmp_path, capsys, small_disk):
+    cfg = small_config(tmp_path)
+    out, rec = str(tmp_path / "out"), str(small_disk / "rec")
+    code = main(["live", "--headless", "--config", cfg, "--frames", "60", "--out", out, "--record", rec])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "NOT recorded" in err and "Traceback" not in err
+    dump = read_dump(small_disk / "rec")  # what fitted is kept, readable
+    assert 1 <= len(dump.frames) < 60
