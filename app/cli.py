@@ -79,6 +79,16 @@ def _main(argv: Sequence[str] | None) -> int:
     except SlscanError as exc:
         print(f"slscan {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except MemoryError:  # (inputs are bounded where they are read: this is the net under those bounds)
+        print(
+            f"slscan {args.command}: error: out of memory: the input asks for more than this machine holds",
+            file=sys.stderr,
+        )
+        return 2
+    except OSError as exc:  # a file system refusal no check foresaw (a name too long, a read-only disk, ...)
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"slscan {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt as exc:
         print(
             f"slscan {args.command}: {'terminated' if isinstance(exc, Terminated) else 'interrupted'}", file=sys.stderr

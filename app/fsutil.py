@@ -19,6 +19,8 @@ def atomic_directory(target: str | os.PathLike, *, overwrite: bool = False) -> I
     An existing non-empty `target` is refused unless overwrite=True, so nothing recorded is lost.
     """
     target = Path(target)
+    if target.is_symlink():  # (an output is never written or removed through a symlink: it may lead anywhere)
+        raise InputError(f"{target}: is a symlink; give the folder itself")
     if target.exists():
         if not target.is_dir():
             raise InputError(f"{target}: exists and is not a folder")
