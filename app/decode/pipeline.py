@@ -9,6 +9,7 @@ import numpy as np
 
 from app.decode.colour import camera_gamma_of
 from app.decode.fast import average_frames
+from app.decode.mosaic import to_rgb
 from app.decode.motion import MotionParams, MotionRepair, check_motion_mode
 from app.decode.stripemap import StripeMap
 from app.decode.twoshot import SEGMENTATIONS
@@ -16,6 +17,7 @@ from app.schemes import get_scheme
 from app.triangulate import PointCloud, Triangulator
 from core.calibration import Calibration
 from core.errors import InputError
+from core.mosaic import mosaic_name
 
 DEFAULT_DEPTH_RANGE_MM = (100.0, 5000.0)
 
@@ -43,11 +45,15 @@ class FrameSetDecoder:
         depth_range_mm: tuple[float, float] | None = None,
         segmentation: str | None = None,
         motion: str = "auto",
+        mosaic: str | None = None,
     ) -> None:
         """segmentation: two-shot stripes from code runs (default), zero crossings or both merged
         (TwoShotParams: both covers grazing surfaces a little better at twice the time). motion: "auto" decodes a
         two-shot pair's newest frame alone where the scene moved since the frame before the pair (app/decode/motion.py;
-        the decode calls say which frame is newest and pass that previous frame), "off" always decodes the pair."""
+        the decode calls say which frame is newest and pass that previous frame), "off" always decodes the pair.
+        mosaic: the Bayer mosaic of raw (H, W) frames, which app/decode/mosaic.py reconstructs to RGB first; RGB
+        frames decode as they are."""
+        self.mosaic = mosaic_name(mosaic, "mosaic")
         if segmentation is not None and segmentation not in SEGMENTATIONS:
             raise InputError(f"segmentation {segmentation!r}: choose {', '.join(SEGMENTATIONS)}")
         self.kind = get_scheme(scheme)  # an unknown name is an InputError
@@ -113,11 +119,26 @@ class FrameSetDecoder:
         frames, moving = self.repaired(list(frames), newest, previous)
         return _noting_motion(self.kind.stripes(self.decoder, frames), moving)
 
+    def rgb(self, frames: list[np.ndarray] | tuple[np.ndarray, ...]) -> list[np.ndarray]:
+        """frames as RGB: raw Bayer frames reconstructed along the stripes (app/decode/mosaic.py), RGB as they are."""
+        return [self.rgb_frame(f) for f in frames]
+
+    def rgb_frame(self, frame: np.ndarray | None) -> np.ndarray | None:
+        if frame is None or frame.ndim == 3:
+            return frame
+        if self.mosaic is None:
+            raise InputError(
+                f"a one-channel {frame.shape[1]}x{frame.shape[0]} frame: the camera's Bayer mosaic is not known"
+            )
+        return to_rgb(frame, self.mosaic)
+
     def repaired(
         self, frames: list[np.ndarray], newest: int | None, previous: np.ndarray | None
     ) -> tuple[list[np.ndarray], float | None]:
         """(frames with the older frame of a two-shot pair repaired where the scene moved, the share of moving
-        pixels), or the frames as they are and None without motion, a newest index or a previous frame."""
+        pixels), or the frames as they are and None without motion, a newest index or a previous frame; raw Bayer
+        frames come back reconstructed to RGB (rgb)."""
+        frames, previous = self.rgb(frames), self.rgb_frame(previous)
         if self.motion is None or newest is None or previous is None:
             return frames, None
         if newest not in (0, 1):
@@ -143,6 +164,7 @@ class FrameSetDecoder:
         self.check_frames(frames, where)
         if previous is not None:
             self.check_frames([previous] * self.shots, f"{where} (previous frame)")
+        frames, previous = self.rgb(frames), self.rgb_frame(previous)
         sm, depth = self.stripes_and_depth(frames, newest, previous)
         texture = average_frames_of(frames[0], frames[1]) if self.kind.shots == 2 else frames[0]  # stripes cancel
         if not sm.valid.any():
