@@ -26,7 +26,7 @@ from core.calibration import Calibration
 from core.errors import DeviceError, InputError
 from core.patterns import SCHEMES, PatternSet, make_patterns
 from drivers.base import CAMERAS, PROJECTORS, TRIGGERS
-from drivers.camera.pixels import camera_frame_dtype
+from drivers.camera.pixels import camera_frame_dtype, camera_mosaic
 
 SIM_MODULE = "drivers.sim.devices"
 
@@ -52,6 +52,7 @@ class Session:
     # the camera frames' dtype, which the decoder's kernels are compiled for before the first set (from the config's
     # camera pixel_format; a camera left in a deeper format than its config says compiles them on its first set)
     frame_dtype: Any = np.uint8
+    mosaic: str | None = None  # a single-chip camera's Bayer mosaic: its frames are raw (H, W) (core/mosaic.py)
 
     def make_loop(self, wrap_projector: Callable[[Any], Any] | None = None, **kw: Any) -> CaptureLoop:
         """Open the devices on the calling thread (a pyglet window belongs to it) and load the patterns.
@@ -77,7 +78,7 @@ class Session:
         seg = None  # two-shot: the config's scheme.segmentation (checked when the session was built)
         if self.config is not None and get_scheme(self.scheme).segmentation:
             seg = self.config.get("scheme.segmentation", None, types=str)
-        proc = LiveDecoder(self.patterns, self.calibration, self.depth_range_mm, seg, self.motion)
+        proc = LiveDecoder(self.patterns, self.calibration, self.depth_range_mm, seg, self.motion, self.mosaic)
         proc.warm_up(self.frame_dtype, announce=self._announce_compile)
         return proc
 
@@ -181,6 +182,7 @@ def build_session(
     rng = tuple(depth_range) if depth_range else None
     session = Session(cfg, scheme, patterns, calibration, rng, rate, make_devices, opts)  # type: ignore[arg-type]
     session.frame_dtype = camera_frame_dtype(cam_opts.get("pixel_format"))
+    session.mosaic = camera_mosaic(cam_opts.get("pixel_format"))
     return session
 
 
@@ -265,7 +267,8 @@ def _sim_session(
         return devs.camera, WatchedWindow(shown, devs.projector), devs.trigger
 
     session = Session(cfg, scheme, patterns, calibration, rng, rate, make_devices, opts, sim=devices)  # type: ignore[arg-type]
-    session.frame_dtype = np.uint16 if rig.options.bit_depth == 16 else np.uint8
+    session.frame_dtype = np.uint16 if rig.options.bit_depth > 8 else np.uint8
+    session.mosaic = rig.mosaic
     return session
 
 
@@ -280,6 +283,7 @@ def open_recorder(session: Session, folder: str | os.PathLike, png_level: int = 
         depth_range_mm=session.depth_range_mm,
         extra={"rig": str(session.config.path)},
         png_level=png_level,
+        mosaic=session.mosaic,
     )
     return Recorder(writer)
 
@@ -302,6 +306,7 @@ def save_result(result: LiveResult, processor: LiveDecoder, out: str | os.PathLi
 
 def write_result_files(result: LiveResult, processor: LiveDecoder, folder: Path, stem: str = "") -> None:
     from app import export
+    from app.decode.mosaic import to_rgb
     from core.imageio import write_rgb
 
     export.write_depth_tiff(folder / f"{stem}depth.tiff", result.depth)
@@ -311,5 +316,5 @@ def write_result_files(result: LiveResult, processor: LiveDecoder, folder: Path,
         export.depth_preview(result.depth, processor.triangulator.depth_range_mm),
     )
     for p, f in enumerate(result.frameset.frames):
-        write_rgb(folder / f"{stem}camera_p{p}.png", f.image)
+        write_rgb(folder / f"{stem}camera_p{p}.png", to_rgb(f.image, f.mosaic))
     export.write_ply(folder / f"{stem}cloud.ply", processor.triangulator.points(result.depth, result.image))

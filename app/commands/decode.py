@@ -80,7 +80,7 @@ def _init(
     _quiet_opencv()
     warnings.simplefilter("ignore", EmptyResultWarning)
     _STATE["dump"] = read_dump(folder)
-    _STATE["decoder"] = FrameSetDecoder(scheme, meta, cal, rng, seg, motion)
+    _STATE["decoder"] = FrameSetDecoder(scheme, meta, cal, rng, seg, motion, _STATE["dump"].mosaic)
     _STATE["range"] = rng
 
 

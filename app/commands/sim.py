@@ -125,7 +125,7 @@ def run_render(args: argparse.Namespace) -> int:
     extra = {"source": f"slscan sim render --scene {rig.scene.name}"}
     moving = rig.moving
     gt_dir = out / "ground_truth"
-    with DumpWriter(out, patterns, rig.calibration, rig.depth_range_mm, extra=extra) as writer:
+    with DumpWriter(out, patterns, rig.calibration, rig.depth_range_mm, extra=extra, mosaic=rig.mosaic) as writer:
         frame_ns = round(1e9 / 60)
         n = 0
         for _ in range(args.cycles):
