@@ -149,7 +149,7 @@ def test_bayer_sensor_records_one_channel_per_site_in_its_mosaic() -> None:
 
 
 def test_bayer_option_names_its_field() -> None:
-    with pytest.raises(InputError, match="option 'bayer'.*RGBG.*not a Bayer mosaic"):
+    with pytest.raises(InputError, match=r"option 'bayer'.*RGBG.*not a Bayer mosaic"):
         rig(bayer="RGBG")
 
 
