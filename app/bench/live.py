@@ -7,8 +7,8 @@ Three measurements, each a table row:
 - pairing: the capture loop alone (no decode) over M frames with drops, duplicates, swaps and
   late flips injected at random; every set is checked against what the virtual camera really
   showed (its ground truth). Target: 0 mispaired.
-- record: the capture loop feeding the recorder (PNG level 0 and 1) for N frames. Target: every
-  tagged frame written, none lost.
+- record: the capture loop feeding the recorder (PNG level 0 and 1, and a single-chip RGGB camera's raw
+  frames at level 1) for N frames. Target: every tagged frame written, none lost.
 - view images: the operator view's image work per shown result at 640x480 (stripe and depth
   panels, the 3D point view), without a window. Target for the point view: well under 2 ms.
 The live row's notes give the CPU each thread used per camera frame: where the time outside
@@ -173,7 +173,7 @@ def _pairing_row(frames: int) -> dict:
     }
 
 
-def _record_row(frames: int, png_level: int) -> dict:
+def _record_row(frames: int, png_level: int, bayer: str | None = None) -> dict:
     import tempfile
     from pathlib import Path
 
@@ -181,7 +181,7 @@ def _record_row(frames: int, png_level: int) -> dict:
     from app.session import build_session, open_recorder
     from core.dump import read_dump
 
-    session = build_session(None)
+    session = build_session(None, sim_overrides={"bayer": bayer} if bayer else None)
     with tempfile.TemporaryDirectory(prefix="slscan-bench-rec-") as tmp:
         rec = open_recorder(session, Path(tmp) / "rec", png_level)
         pipe = LivePipeline(lambda: session.make_loop(timeout_s=3.0), None, max_frames=frames, recorder=rec)
@@ -193,7 +193,7 @@ def _record_row(frames: int, png_level: int) -> dict:
     w = np.asarray(stats.write_ms) if stats.write_ms else np.array([np.nan])
     fig = pipe.figures()
     return {
-        "run": f"record, PNG level {png_level}",
+        "run": f"record{f' raw {bayer}' if bayer else ''}, PNG level {png_level}",
         "frames": fig["frames"],
         "frames_per_s": round(fig["frames_per_s"], 1),
         "depth_maps_per_s": "",
@@ -219,6 +219,7 @@ def run(args: argparse.Namespace) -> list[dict]:
     rows.append(_pairing_row(getattr(args, "live_pairing_frames", 10_000)))
     for level in (0, 1):
         rows.append(_record_row(frames, level))
+    rows.append(_record_row(frames, 1, bayer="RGGB"))  # one channel: a third of the bytes to compress
     return rows
 
 

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import threading
 import warnings
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,6 +56,10 @@ class FrameSetDecoder:
         mosaic: the Bayer mosaic of raw (H, W) frames, which app/decode/mosaic.py reconstructs to RGB first; RGB
         frames decode as they are."""
         self.mosaic = mosaic_name(mosaic, "mosaic")
+        # the last raw frames and their reconstructions: live, each frame is in two sliding pairs and is the
+        # previous frame of a third set, so it is reconstructed once (entries hold the raw array: ids stay unique)
+        self._rgb_cache: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=4)
+        self._rgb_lock = threading.Lock()
         if segmentation is not None and segmentation not in SEGMENTATIONS:
             raise InputError(f"segmentation {segmentation!r}: choose {', '.join(SEGMENTATIONS)}")
         self.kind = get_scheme(scheme)  # an unknown name is an InputError
@@ -124,13 +130,21 @@ class FrameSetDecoder:
         return [self.rgb_frame(f) for f in frames]
 
     def rgb_frame(self, frame: np.ndarray | None) -> np.ndarray | None:
+        """One frame as RGB (rgb); None stays None."""
         if frame is None or frame.ndim == 3:
             return frame
         if self.mosaic is None:
             raise InputError(
                 f"a one-channel {frame.shape[1]}x{frame.shape[0]} frame: the camera's Bayer mosaic is not known"
             )
-        return to_rgb(frame, self.mosaic)
+        with self._rgb_lock:
+            for raw, rgb in self._rgb_cache:
+                if raw is frame:
+                    return rgb
+        rgb = to_rgb(frame, self.mosaic)
+        with self._rgb_lock:
+            self._rgb_cache.append((frame, rgb))
+        return rgb
 
     def repaired(
         self, frames: list[np.ndarray], newest: int | None, previous: np.ndarray | None
