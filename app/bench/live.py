@@ -1,7 +1,8 @@
 """`slscan bench --live`: the live session on the virtual rig at 640x480 (targets in docs/performance.md).
 
 Three measurements, each a table row:
-- live: the whole pipeline (trigger-paced capture, decode worker(s), no view) for N frames:
+- live: the whole pipeline (trigger-paced capture, decode worker(s), no view) for N frames, with the
+  3-CCD-like virtual camera and with a single-chip RGGB one (raw frames, app/decode/mosaic.py):
   frames/s in, depth maps/s out, p50/p95 latency (host arrival of a set's newest frame -> depth
   ready), per-stage medians, dropped / refused / stale counts. Targets: 60 in, >= 55 out, p95 <= 50 ms.
 - pairing: the capture loop alone (no decode) over M frames with drops, duplicates, swaps and
@@ -52,11 +53,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--live-workers", type=positive_int, default=DECODE_WORKERS, metavar="W", help=WORKERS_HELP)
 
 
-def _live_row(frames: int, workers: int) -> dict:
+def _live_row(frames: int, workers: int, bayer: str | None = None) -> dict:
     from app.live_pipeline import LivePipeline
     from app.session import build_session
 
-    session = build_session(None)
+    session = build_session(None, sim_overrides={"bayer": bayer} if bayer else None)
     processor = session.processor()
     cam = session.sim.camera
     mispaired = 0
@@ -75,7 +76,7 @@ def _live_row(frames: int, workers: int) -> dict:
     fig = pipe.figures()
     cpu = ", ".join(f"{k} {v:.2f}" for k, v in fig["cpu_ms_per_frame"].items())
     return {
-        "run": f"live, {workers} decode thread(s)",
+        "run": f"live{f' raw {bayer}' if bayer else ''}, {workers} decode thread(s)",
         "frames": fig["frames"],
         "frames_per_s": round(fig["frames_per_s"], 1),
         "depth_maps_per_s": round(fig["depth_per_s"], 1),
@@ -215,7 +216,8 @@ def _record_row(frames: int, png_level: int, bayer: str | None = None) -> dict:
 
 def run(args: argparse.Namespace) -> list[dict]:
     frames = getattr(args, "live_frames", 600)
-    rows = [_live_row(frames, getattr(args, "live_workers", 1)), _view_row()]
+    workers = getattr(args, "live_workers", 1)
+    rows = [_live_row(frames, workers), _live_row(frames, workers, bayer="RGGB"), _view_row()]
     rows.append(_pairing_row(getattr(args, "live_pairing_frames", 10_000)))
     for level in (0, 1):
         rows.append(_record_row(frames, level))
