@@ -25,6 +25,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from core.chroma import chroma_name
 from core.errors import DeviceError, InputError
 from core.mosaic import mosaic_name
 from drivers.base import CAMERAS, PROJECTORS, TRIGGERS, CameraTimeoutError, Frame, register
@@ -419,6 +420,7 @@ SIM_KEYS = (
     "stepped",
     "bit_depth",
     "bayer",
+    "chroma",
     "effects",
     "faults",
     "buffer_frames",
@@ -472,6 +474,8 @@ def bench_from_config(config: object) -> SimBench:
         opts["bit_depth"] = sim["bit_depth"]
     if "bayer" in sim:
         opts["bayer"] = mosaic_name(sim["bayer"], f"{where}: key 'sim.bayer'")
+    if "chroma" in sim:
+        opts["chroma"] = chroma_name(sim["chroma"], f"{where}: key 'sim.chroma'")
     effects = sim.get("effects") or {}
     if not isinstance(effects, dict):
         raise InputError(f"{where}: key 'sim.effects' must be a mapping")

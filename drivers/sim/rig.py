@@ -34,6 +34,7 @@ import cv2
 import numpy as np
 
 from core.calibration import Calibration
+from core.chroma import chroma_name, subsample_chroma
 from core.errors import InputError
 from core.mosaic import mosaic_name, sample_mosaic
 from drivers.sim.kernels import affine3, light_to_linear, sensor, warm_up
@@ -81,6 +82,9 @@ class RigOptions:
     # a single-chip sensor: its mosaic (RGGB, GRBG, GBRG, BGGR; true = RGGB), frames raw (H, W), one channel per
     # site; false = one colour per pixel, as the paper's 3-CCD camera
     bayer: bool | str = False
+    # colour subsampled across the rows as a webcam's YUYV (4:2:2) or MJPEG (4:2:0) delivers it (core/chroma.py);
+    # None = full colour
+    chroma: str | None = None
 
     def crosstalk_matrix(self) -> np.ndarray:
         c = self.crosstalk
@@ -250,6 +254,8 @@ class VirtualRig:
         if o.bit_depth not in (8, 12, 16):
             raise bad("bit_depth", "must be 8, 12 or 16")
         mosaic_name(o.bayer, f"{where}: option 'bayer'")
+        if chroma_name(o.chroma, f"{where}: option 'chroma'") is not None and o.bayer:
+            raise bad("chroma", "does not go with a Bayer sensor (a webcam's colour is subsampled after demosaicing)")
         for key in ("projector_gamma", "camera_gamma", "exposure", "full_well"):
             if not (isinstance(getattr(o, key), int | float) and getattr(o, key) > 0):
                 raise bad(key, "must be a number > 0")
@@ -329,6 +335,11 @@ class VirtualRig:
         """The full-scale value of a frame (12 bits: 4095 shifted to fill 16)."""
         bits = self.options.bit_depth
         return ((1 << bits) - 1) << (4 if bits == 12 else 0)
+
+    @property
+    def chroma(self) -> str | None:
+        """The camera's chroma subsampling ("4:2:2", "4:2:0"; core/chroma.py), None for full colour."""
+        return chroma_name(self.options.chroma, "option 'chroma'")
 
     @property
     def mosaic(self) -> str | None:
@@ -698,6 +709,8 @@ class VirtualRig:
         )
         if self.mosaic is not None:
             out = sample_mosaic(out, self.mosaic)
+        elif self.chroma is not None:
+            out = subsample_chroma(out, self.chroma)
         return out
 
 
