@@ -18,11 +18,13 @@ from typing import Any
 import numpy as np
 
 from app.capture import CaptureLoop, pattern_order
+from app.chroma import chroma_warning, stripe_width_for
 from app.config import Config, load_config
 from app.live_pipeline import LiveDecoder, LiveResult
 from app.rig_devices import make_device, rig_driver
 from app.schemes import get_scheme
 from core.calibration import Calibration
+from core.chroma import chroma_of_fourcc
 from core.errors import DeviceError, InputError
 from core.patterns import SCHEMES, PatternSet, make_patterns
 from drivers.base import CAMERAS, PROJECTORS, TRIGGERS
@@ -53,6 +55,8 @@ class Session:
     # camera pixel_format; a camera left in a deeper format than its config says compiles them on its first set)
     frame_dtype: Any = np.uint8
     mosaic: str | None = None  # a single-chip camera's Bayer mosaic: its frames are raw (H, W) (core/mosaic.py)
+    chroma: str | None = None  # colour subsampled across the rows ("4:2:2", "4:2:0"; core/chroma.py), None = full
+    notices: list[str] = field(default_factory=list)  # warnings for the operator, printed by the commands
 
     def make_loop(self, wrap_projector: Callable[[Any], Any] | None = None, **kw: Any) -> CaptureLoop:
         """Open the devices on the calling thread (a pyglet window belongs to it) and load the patterns.
@@ -100,7 +104,12 @@ _OPTION_TYPES = {"k": int, "stripe_width": int, "channels": str, "colors": str}
 def _scheme_options(cfg: Config, scheme: str) -> dict:
     sec = cfg.section("scheme", required=False)
     kind = get_scheme(scheme)
-    opts = {key: cfg.get(f"scheme.{key}", types=_OPTION_TYPES[key]) for key in kind.pattern_options if key in sec}
+    opts: dict = {}
+    for key in kind.pattern_options:
+        if key == "stripe_width" and sec.get(key) == "auto":
+            opts[key] = "auto"  # the width the camera's colour carries: resolved once the camera is known
+        elif key in sec:
+            opts[key] = cfg.get(f"scheme.{key}", types=_OPTION_TYPES[key])
     if kind.segmentation and "segmentation" in sec:
         from app.decode.twoshot import SEGMENTATIONS  # lazy: the decoders compile with numba
 
@@ -109,6 +118,27 @@ def _scheme_options(cfg: Config, scheme: str) -> dict:
             raise InputError(f"{cfg.path}: key 'scheme.segmentation': {seg!r} (choose {', '.join(SEGMENTATIONS)})")
     motion_mode(cfg)  # (checked when the session is built)
     return opts
+
+
+def _fit_stripes(
+    scheme: str, opts: dict, chroma: str | None, calibration: Calibration, camera: str
+) -> tuple[dict, list[str]]:
+    """(the scheme options with stripe_width "auto" resolved to the width the camera's colour carries, the
+    warnings for the operator: a subsampled-colour camera under stripes too narrow for it)."""
+    opts = dict(opts)
+    if opts.get("stripe_width") == "auto":
+        opts["stripe_width"] = stripe_width_for(chroma, calibration)
+    if "stripe_width" not in get_scheme(scheme).pattern_options:
+        return opts, []
+    width = opts.get("stripe_width", 1)
+    warning = chroma_warning(chroma, calibration, int(width), camera)
+    return opts, [warning] if warning else []
+
+
+def _tell(notices: list[str]) -> None:
+    """The operator's warnings, on stderr as the session is built (every command that opens the rig)."""
+    for line in notices:
+        print(line, file=sys.stderr, flush=True)
 
 
 def motion_mode(cfg: Config | None) -> str:
@@ -160,6 +190,8 @@ def build_session(
     if not cal_file.is_file():
         raise InputError(f"{cfg.path}: key 'calibration': file {cal_file} not found (run `slscan calibrate`)")
     calibration = Calibration.load(cal_file)
+    chroma = chroma_of_fourcc(cam_opts.get("fourcc")) if cam_name == "v4l2" else None
+    opts, notices = _fit_stripes(scheme, opts, chroma, calibration, f"camera {cam_name}")
     patterns = make_patterns(scheme, calibration.projector_size, **opts)
     if trig_name and "cycle" not in trig_opts and "cycle" in inspect.signature(TRIGGERS[trig_name]).parameters:
         trig_opts["cycle"] = len(pattern_order(scheme, len(patterns)))  # the box marks each pattern cycle
@@ -183,6 +215,8 @@ def build_session(
     session = Session(cfg, scheme, patterns, calibration, rng, rate, make_devices, opts)  # type: ignore[arg-type]
     session.frame_dtype = camera_frame_dtype(cam_opts.get("pixel_format"))
     session.mosaic = camera_mosaic(cam_opts.get("pixel_format"))
+    session.chroma, session.notices = chroma, notices
+    _tell(notices)
     return session
 
 
@@ -245,6 +279,7 @@ def _sim_session(
     devices = sim_devices.make_sim_rig(cfg)
     rig = devices.rig
     calibration = rig.calibration
+    opts, notices = _fit_stripes(scheme, opts, rig.chroma, calibration, "the virtual camera")
     patterns = make_patterns(scheme, tuple(devices.projector.size), **opts)
     rng = tuple(depth_range) if depth_range else tuple(rig.depth_range_mm)
     used = {"done": False}
@@ -269,6 +304,8 @@ def _sim_session(
     session = Session(cfg, scheme, patterns, calibration, rng, rate, make_devices, opts, sim=devices)  # type: ignore[arg-type]
     session.frame_dtype = np.uint16 if rig.options.bit_depth > 8 else np.uint8
     session.mosaic = rig.mosaic
+    session.chroma, session.notices = rig.chroma, notices
+    _tell(notices)
     return session
 
 

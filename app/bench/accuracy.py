@@ -11,7 +11,8 @@ whose depth is within 1 mm of the truth / decoded pixels on a surface; shots per
 Cameras (two-shot): `3-CCD` (one colour per pixel, as the paper's camera: every scheme's rows), `RGGB raw`
 (the same exposure through an RGGB mosaic, decoded from the raw frame: app/decode/mosaic.py) and `RGGB
 demosaiced` (that raw frame demosaiced by OpenCV's bilinear Bayer conversion, as a photographic pipeline
-delivers it), at 8 and 12 bits.
+delivers it), at 8 and 12 bits; `YUYV 4:2:2` and `MJPEG 4:2:0` (a webcam's colour, subsampled across the
+rows: core/chroma.py; 8 bits), under the bench's one-pixel stripes.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import warnings
 import cv2
 import numpy as np
 
+from core.chroma import subsample_chroma
 from core.errors import InputError
 from core.mosaic import sample_mosaic
 
@@ -31,8 +33,15 @@ HELP = "coverage, correct rate and RMSE of one-shot, two-shot and Gray code on t
 
 SCENES = ("plane", "face", "colour_panel", "cube", "cylinder", "steps")
 SCHEMES = ("one-shot", "two-shot", "graycode")
-CAMERAS = ("3ccd", "rggb-raw", "rggb-demosaiced")
-CAMERA_NAMES = {"3ccd": "3-CCD", "rggb-raw": "RGGB raw", "rggb-demosaiced": "RGGB demosaiced"}
+CAMERAS = ("3ccd", "rggb-raw", "rggb-demosaiced", "yuyv-422", "mjpeg-420")
+CAMERA_NAMES = {
+    "3ccd": "3-CCD",
+    "rggb-raw": "RGGB raw",
+    "rggb-demosaiced": "RGGB demosaiced",
+    "yuyv-422": "YUYV 4:2:2",
+    "mjpeg-420": "MJPEG 4:2:0",
+}
+CHROMA_OF = {"yuyv-422": "4:2:2", "mjpeg-420": "4:2:0"}  # (webcam colour: 8-bit only)
 BITS = (8, 12)
 
 
@@ -109,8 +118,9 @@ def run(args: argparse.Namespace) -> list[dict]:
                 if scheme == "two-shot" and depth in bits:
                     variants = [c for c in cameras if c != "3ccd" or depth != 8]
                     variants = ["3ccd", *variants] if depth == 8 else variants
+                    variants = [c for c in variants if depth == 8 or c not in CHROMA_OF]
                 for camera in variants:
-                    mosaic = "RGGB" if camera != "3ccd" else None
+                    mosaic = "RGGB" if camera.startswith("rggb") else None
                     shown = [camera_frame(f, camera) for f in frames]
                     dec = FrameSetDecoder(scheme, meta, cal, rig.depth_range_mm, mosaic=mosaic)
                     res = dec.decode(shown)
@@ -133,10 +143,12 @@ def run(args: argparse.Namespace) -> list[dict]:
 
 
 def camera_frame(image: np.ndarray, camera: str) -> np.ndarray:
-    """What a camera delivers of an RGB exposure: as it is (3-CCD), its RGGB mosaic (raw), or that mosaic
-    demosaiced by OpenCV (bilinear)."""
+    """What a camera delivers of an RGB exposure: as it is (3-CCD), its RGGB mosaic (raw), that mosaic
+    demosaiced by OpenCV (bilinear), or its colour subsampled (YUYV, MJPEG)."""
     if camera == "3ccd":
         return image
+    if camera in CHROMA_OF:
+        return subsample_chroma(image, CHROMA_OF[camera])
     raw = sample_mosaic(image, "RGGB")
     return raw if camera == "rggb-raw" else cv2.cvtColor(raw, cv2.COLOR_BayerRGGB2RGB)
 
