@@ -14,6 +14,7 @@ crossings interpolated between them. The decoder's crosstalk unmixing then acts 
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 from numba import njit
 
@@ -36,8 +37,10 @@ def stripe_rgb(raw: np.ndarray, mosaic: str, out: np.ndarray | None = None) -> n
         out = np.empty((H, W, 3), raw.dtype)
     if not (out.shape == (H, W, 3) and out.dtype == raw.dtype and out.flags.c_contiguous):
         raise ValueError(f"out must be a C-contiguous {raw.dtype} (H, W, 3) array, found {out.dtype} {out.shape}")
-    top = np.int32(np.iinfo(raw.dtype).max)
-    _stripe_rgb(np.ascontiguousarray(raw), site_codes(name), top, out.reshape(H, W * 3))
+    # one plane per channel (contiguous stores, which the compiler vectorises), interleaved by OpenCV's merge
+    planes = np.empty((3, H, W), raw.dtype)
+    _stripe_planes(np.ascontiguousarray(raw), site_codes(name), np.int32(np.iinfo(raw.dtype).max), *planes)
+    cv2.merge([planes[0], planes[1], planes[2]], dst=out)
     return out
 
 
@@ -49,14 +52,15 @@ def to_rgb(image: np.ndarray, mosaic: str | None) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _stripe_rgb(raw, codes, top, out):
-    """out: (H, 3 W), the RGB frame's rows."""
+def _stripe_planes(raw, codes, top, red, green, blue):
+    """red, green, blue: (H, W) planes, written."""
     H, W = raw.shape
     own = np.empty(W, np.int32)  # this row's samples
     vert = np.empty(W, np.int32)  # the mean of the rows above and below (the same stripe)
     # the column parities holding R and B (G is in every column, at this row's own sites of parity gx)
     rx = 0 if (codes[0, 0] == 0 or codes[1, 0] == 0) else 1
     bx = 1 - rx
+    _edges(raw, codes, rx, red, green, blue)  # (apart: in the row loop they kept the interior scalar)
     for y in range(H):
         a = raw[y]
         u = raw[y - 1 if y > 0 else y + 1]
@@ -69,38 +73,47 @@ def _stripe_rgb(raw, codes, top, out):
         # R and B in the columns holding them: this row's sample there, or the rows above and below
         rs = own if codes[py, rx] == 0 else vert
         bs = own if codes[py, bx] == 2 else vert
-        row = out[y]
-        for x in range(min(3, W)):
-            _edge_pixel(rs, bs, own, vert, x, W, rx, gx, row)
+        r = red[y]
+        g = green[y]
+        b = blue[y]
         # the interior, branch-free (the compiler vectorises it): the column's own channels, and the cubic
         # (-1, 9, 9, -1) / 16 across the row for the one it lacks
         for x in range(3, W - 3):
             odd = x & 1
-            row[3 * x] = rs[x] if odd == rx else _across(rs, x, top)
-            row[3 * x + 1] = own[x] if odd == gx else vert[x]
-            row[3 * x + 2] = bs[x] if odd == bx else _across(bs, x, top)
-        for x in range(max(3, W - 3), W):
-            _edge_pixel(rs, bs, own, vert, x, W, rx, gx, row)
+            ra = min(max((9 * (rs[x - 1] + rs[x + 1]) - rs[x - 3] - rs[x + 3] + 8) >> 4, 0), top)
+            ba = min(max((9 * (bs[x - 1] + bs[x + 1]) - bs[x - 3] - bs[x + 3] + 8) >> 4, 0), top)
+            r[x] = rs[x] if odd == rx else ra
+            g[x] = own[x] if odd == gx else vert[x]
+            b[x] = bs[x] if odd == bx else ba
+
+
+@njit(nogil=True, error_model="numpy")
+def _edges(raw, codes, rx, red, green, blue):
+    """The pixels within 3 columns of the image's edges, where the cubic's taps would leave it: the lacking
+    channel linear across, or from its one neighbour."""
+    H, W = raw.shape
+    for y in range(H):
+        y0 = y - 1 if y > 0 else y + 1
+        y1 = y + 1 if y + 1 < H else y - 1
+        for i in range(6):
+            x = i if i < 3 else W - 6 + i
+            if x < 0 or x >= W:
+                continue
+            green[y, x] = _held(raw, codes, y, y0, y1, x, 1)
+            for c, cx, plane in ((0, rx, red), (2, 1 - rx, blue)):
+                if (x & 1) == cx:
+                    v = _held(raw, codes, y, y0, y1, x, c)
+                elif x >= 1 and x + 1 < W:
+                    v = (_held(raw, codes, y, y0, y1, x - 1, c) + _held(raw, codes, y, y0, y1, x + 1, c) + 1) >> 1
+                else:
+                    v = _held(raw, codes, y, y0, y1, x + 1 if x == 0 else x - 1, c)
+                plane[y, x] = v
 
 
 @njit(inline="always")
-def _across(src, x, top):
-    return min(max((9 * (src[x - 1] + src[x + 1]) - src[x - 3] - src[x + 3] + 8) >> 4, 0), top)
-
-
-@njit(inline="always")
-def _edge_pixel(rs, bs, own, vert, x, W, rx, gx, row):
-    """A pixel near the image's edge (the cubic's taps reach 3 columns): the lacking channel linear across, or
-    its one neighbour."""
-    row[3 * x] = _edge_value(rs, x, W, rx)
-    row[3 * x + 1] = own[x] if (x & 1) == gx else vert[x]
-    row[3 * x + 2] = _edge_value(bs, x, W, 1 - rx)
-
-
-@njit(inline="always")
-def _edge_value(src, x, W, cx):
-    if (x & 1) == cx:
-        return src[x]
-    if x >= 1 and x + 1 < W:
-        return (src[x - 1] + src[x + 1] + 1) >> 1
-    return src[x + 1 if x == 0 else x - 1]
+def _held(raw, codes, y, y0, y1, x, c):
+    """Channel c in column x (which holds it) on row y: the site's sample, or the mean of the rows above and
+    below."""
+    if codes[y & 1, x & 1] == c:
+        return np.int32(raw[y, x])
+    return (np.int32(raw[y0, x]) + np.int32(raw[y1, x]) + 1) >> 1
