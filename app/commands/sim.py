@@ -49,7 +49,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--cycles", type=positive_int, default=1, help="pattern cycles to render (default 1)")
     r.add_argument("--ideal", action="store_true", help="no noise, blur, crosstalk, ambient, gamma or shading")
     r.add_argument("--seed", type=non_negative_int, help="noise seed (default 0)")
-    r.add_argument("--bit-depth", type=int, choices=(8, 16), help="camera output bits (default 8)")
+    r.add_argument(
+        "--bit-depth", type=int, choices=(8, 12, 16), help="camera output bits (default 8; 12 fills uint16 frames)"
+    )
     r.add_argument(
         "--set",
         action="append",
