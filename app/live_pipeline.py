@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from app.capture import CaptureLoop, CaptureStats, FrameSet
+from app.decode.mosaic import to_rgb
 from app.decode.stripemap import StripeMap
 from app.recorder import Recorder, lower_thread_priority
 from core.calibration import Calibration
@@ -51,7 +52,9 @@ class LiveDecoder:
         depth_range_mm: tuple[float, float] | None,
         segmentation: str | None = None,
         motion: str = "auto",
+        mosaic: str | None = None,
     ) -> None:
+        """mosaic: a single-chip camera's Bayer mosaic; its raw frames are reconstructed to RGB by the decoder."""
         from app.decode.pipeline import FrameSetDecoder
 
         self.scheme = patterns.scheme
@@ -59,8 +62,9 @@ class LiveDecoder:
         self.calibration = calibration
         meta = {**patterns.params, "scheme": patterns.scheme, "size": list(patterns.size)}
         self.frameset_decoder = FrameSetDecoder(
-            patterns.scheme, meta, calibration, depth_range_mm, segmentation, motion
+            patterns.scheme, meta, calibration, depth_range_mm, segmentation, motion, mosaic
         )
+        self.mosaic = self.frameset_decoder.mosaic
         self.triangulator = self.frameset_decoder.triangulator
         self.decoder = self.frameset_decoder.decoder
         # (a mirrored rig's decoder leaves the depth map to a separate pass: TwoShotDecoder.decode_depth)
@@ -89,7 +93,7 @@ class LiveDecoder:
             if not self.frameset_decoder.kind.compiled:  # numpy decoding: only the triangulation compiles
                 self.triangulator.depth(np.full((h, w), np.nan, np.float32))
             else:
-                blank = np.zeros((h, w, 3), dtype)
+                blank = np.zeros((h, w) if self.mosaic is not None else (h, w, 3), dtype)
                 # (with motion the repair of a pair's older frame compiles too: app/decode/motion.py)
                 previous = blank if self.frameset_decoder.motion is not None else None
                 self.decode_depth((blank,) * len(self.patterns), len(self.patterns) - 1, previous)
@@ -141,8 +145,10 @@ class LiveResult:
 
     @property
     def image(self) -> np.ndarray:
-        """The newest camera frame of the set (for display and point colours)."""
-        return self.frameset.newest.image
+        """The newest camera frame of the set as RGB (for display and point colours; a raw Bayer frame
+        reconstructed, app/decode/mosaic.py)."""
+        newest = self.frameset.newest
+        return to_rgb(newest.image, newest.mosaic)
 
 
 @dataclass

@@ -18,15 +18,17 @@ from typing import Any
 import numpy as np
 
 from app.capture import CaptureLoop, pattern_order
+from app.chroma import chroma_warning, stripe_width_for
 from app.config import Config, load_config
 from app.live_pipeline import LiveDecoder, LiveResult
 from app.rig_devices import make_device, rig_driver
 from app.schemes import get_scheme
 from core.calibration import Calibration
+from core.chroma import chroma_of_fourcc
 from core.errors import DeviceError, InputError
 from core.patterns import SCHEMES, PatternSet, make_patterns
 from drivers.base import CAMERAS, PROJECTORS, TRIGGERS
-from drivers.camera.pixels import camera_frame_dtype
+from drivers.camera.pixels import camera_frame_dtype, camera_mosaic
 
 SIM_MODULE = "drivers.sim.devices"
 
@@ -52,6 +54,9 @@ class Session:
     # the camera frames' dtype, which the decoder's kernels are compiled for before the first set (from the config's
     # camera pixel_format; a camera left in a deeper format than its config says compiles them on its first set)
     frame_dtype: Any = np.uint8
+    mosaic: str | None = None  # a single-chip camera's Bayer mosaic: its frames are raw (H, W) (core/mosaic.py)
+    chroma: str | None = None  # colour subsampled across the rows ("4:2:2", "4:2:0"; core/chroma.py), None = full
+    notices: list[str] = field(default_factory=list)  # warnings for the operator, printed by the commands
 
     def make_loop(self, wrap_projector: Callable[[Any], Any] | None = None, **kw: Any) -> CaptureLoop:
         """Open the devices on the calling thread (a pyglet window belongs to it) and load the patterns.
@@ -77,7 +82,7 @@ class Session:
         seg = None  # two-shot: the config's scheme.segmentation (checked when the session was built)
         if self.config is not None and get_scheme(self.scheme).segmentation:
             seg = self.config.get("scheme.segmentation", None, types=str)
-        proc = LiveDecoder(self.patterns, self.calibration, self.depth_range_mm, seg, self.motion)
+        proc = LiveDecoder(self.patterns, self.calibration, self.depth_range_mm, seg, self.motion, self.mosaic)
         proc.warm_up(self.frame_dtype, announce=self._announce_compile)
         return proc
 
@@ -99,7 +104,12 @@ _OPTION_TYPES = {"k": int, "stripe_width": int, "channels": str, "colors": str}
 def _scheme_options(cfg: Config, scheme: str) -> dict:
     sec = cfg.section("scheme", required=False)
     kind = get_scheme(scheme)
-    opts = {key: cfg.get(f"scheme.{key}", types=_OPTION_TYPES[key]) for key in kind.pattern_options if key in sec}
+    opts: dict = {}
+    for key in kind.pattern_options:
+        if key == "stripe_width" and sec.get(key) == "auto":
+            opts[key] = "auto"  # the width the camera's colour carries: resolved once the camera is known
+        elif key in sec:
+            opts[key] = cfg.get(f"scheme.{key}", types=_OPTION_TYPES[key])
     if kind.segmentation and "segmentation" in sec:
         from app.decode.twoshot import SEGMENTATIONS  # lazy: the decoders compile with numba
 
@@ -108,6 +118,27 @@ def _scheme_options(cfg: Config, scheme: str) -> dict:
             raise InputError(f"{cfg.path}: key 'scheme.segmentation': {seg!r} (choose {', '.join(SEGMENTATIONS)})")
     motion_mode(cfg)  # (checked when the session is built)
     return opts
+
+
+def _fit_stripes(
+    scheme: str, opts: dict, chroma: str | None, calibration: Calibration, camera: str
+) -> tuple[dict, list[str]]:
+    """(the scheme options with stripe_width "auto" resolved to the width the camera's colour carries, the
+    warnings for the operator: a subsampled-colour camera under stripes too narrow for it)."""
+    opts = dict(opts)
+    if opts.get("stripe_width") == "auto":
+        opts["stripe_width"] = stripe_width_for(chroma, calibration)
+    if "stripe_width" not in get_scheme(scheme).pattern_options:
+        return opts, []
+    width = opts.get("stripe_width", 1)
+    warning = chroma_warning(chroma, calibration, int(width), camera)
+    return opts, [warning] if warning else []
+
+
+def _tell(notices: list[str]) -> None:
+    """The operator's warnings, on stderr as the session is built (every command that opens the rig)."""
+    for line in notices:
+        print(line, file=sys.stderr, flush=True)
 
 
 def motion_mode(cfg: Config | None) -> str:
@@ -159,6 +190,8 @@ def build_session(
     if not cal_file.is_file():
         raise InputError(f"{cfg.path}: key 'calibration': file {cal_file} not found (run `slscan calibrate`)")
     calibration = Calibration.load(cal_file)
+    chroma = chroma_of_fourcc(cam_opts.get("fourcc")) if cam_name == "v4l2" else None
+    opts, notices = _fit_stripes(scheme, opts, chroma, calibration, f"camera {cam_name}")
     patterns = make_patterns(scheme, calibration.projector_size, **opts)
     if trig_name and "cycle" not in trig_opts and "cycle" in inspect.signature(TRIGGERS[trig_name]).parameters:
         trig_opts["cycle"] = len(pattern_order(scheme, len(patterns)))  # the box marks each pattern cycle
@@ -181,6 +214,9 @@ def build_session(
     rng = tuple(depth_range) if depth_range else None
     session = Session(cfg, scheme, patterns, calibration, rng, rate, make_devices, opts)  # type: ignore[arg-type]
     session.frame_dtype = camera_frame_dtype(cam_opts.get("pixel_format"))
+    session.mosaic = camera_mosaic(cam_opts.get("pixel_format"))
+    session.chroma, session.notices = chroma, notices
+    _tell(notices)
     return session
 
 
@@ -243,6 +279,7 @@ def _sim_session(
     devices = sim_devices.make_sim_rig(cfg)
     rig = devices.rig
     calibration = rig.calibration
+    opts, notices = _fit_stripes(scheme, opts, rig.chroma, calibration, "the virtual camera")
     patterns = make_patterns(scheme, tuple(devices.projector.size), **opts)
     rng = tuple(depth_range) if depth_range else tuple(rig.depth_range_mm)
     used = {"done": False}
@@ -265,7 +302,10 @@ def _sim_session(
         return devs.camera, WatchedWindow(shown, devs.projector), devs.trigger
 
     session = Session(cfg, scheme, patterns, calibration, rng, rate, make_devices, opts, sim=devices)  # type: ignore[arg-type]
-    session.frame_dtype = np.uint16 if rig.options.bit_depth == 16 else np.uint8
+    session.frame_dtype = np.uint16 if rig.options.bit_depth > 8 else np.uint8
+    session.mosaic = rig.mosaic
+    session.chroma, session.notices = rig.chroma, notices
+    _tell(notices)
     return session
 
 
@@ -280,6 +320,7 @@ def open_recorder(session: Session, folder: str | os.PathLike, png_level: int = 
         depth_range_mm=session.depth_range_mm,
         extra={"rig": str(session.config.path)},
         png_level=png_level,
+        mosaic=session.mosaic,
     )
     return Recorder(writer)
 
@@ -302,6 +343,7 @@ def save_result(result: LiveResult, processor: LiveDecoder, out: str | os.PathLi
 
 def write_result_files(result: LiveResult, processor: LiveDecoder, folder: Path, stem: str = "") -> None:
     from app import export
+    from app.decode.mosaic import to_rgb
     from core.imageio import write_rgb
 
     export.write_depth_tiff(folder / f"{stem}depth.tiff", result.depth)
@@ -311,5 +353,5 @@ def write_result_files(result: LiveResult, processor: LiveDecoder, folder: Path,
         export.depth_preview(result.depth, processor.triangulator.depth_range_mm),
     )
     for p, f in enumerate(result.frameset.frames):
-        write_rgb(folder / f"{stem}camera_p{p}.png", f.image)
+        write_rgb(folder / f"{stem}camera_p{p}.png", to_rgb(f.image, f.mosaic))
     export.write_ply(folder / f"{stem}cloud.ply", processor.triangulator.points(result.depth, result.image))

@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from app import export
+from app.decode.mosaic import to_rgb
 from app.decode.stripemap import StripeMap
 from app.live_pipeline import status_line
 from app.pointview import _TURBO, PointView, decimate, decimated_rays, depth_colours, render_points
@@ -97,8 +98,9 @@ def depth_panel(depth: np.ndarray, depth_range_mm: tuple[float, float] | None = 
     return np.take(_TURBO_NONE, g, axis=0)
 
 
-def to_display(image: np.ndarray) -> np.ndarray:
-    """Any camera image (uint8/uint16, RGB) as uint8 RGB."""
+def to_display(image: np.ndarray, mosaic: str | None = None) -> np.ndarray:
+    """Any camera image (uint8/uint16, RGB, or a raw Bayer frame with its mosaic) as uint8 RGB."""
+    image = to_rgb(image, mosaic)
     if image.dtype == np.uint16:
         return (image >> 8).astype(np.uint8)
     return image
@@ -181,7 +183,7 @@ class PointPanel:
         xyz, _ = decimate(result.depth, self.rays, None, self.step)
         if self.camera_colours:
             # The brightest of the set's frames: two-shot lights each channel in one of its two frames.
-            frames = [to_display(f.image)[:: self.step, :: self.step] for f in result.frameset.frames]
+            frames = [to_display(f.image, f.mosaic)[:: self.step, :: self.step] for f in result.frameset.frames]
             rgb = np.maximum.reduce(frames)[result.depth[:: self.step, :: self.step] > 0]
         else:
             rgb = depth_colours(xyz, self.depth_range_mm)
@@ -407,7 +409,8 @@ class LiveView:
                 upload(1, stripe_panel(res.stripes))
                 upload(2, depth_panel(res.depth, self.processor.triangulator.depth_range_mm))
             elif self.pipe.latest_frame is not None and self.pipe.latest is None:
-                upload(0, self.pipe.latest_frame.image)
+                frame = self.pipe.latest_frame
+                upload(0, to_display(frame.image, frame.mosaic))
             if last is not None:
                 t1 = time.perf_counter()
                 upload(3, self.points.render(last))

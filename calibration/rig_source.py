@@ -18,6 +18,7 @@ import time
 import numpy as np
 
 from app.config import Config
+from app.decode.mosaic import to_rgb
 from calibration.board import Board, detect
 from calibration.correspondence import decode_projector_maps
 from calibration.preview import PreviewWorker
@@ -152,7 +153,7 @@ class RigBoardSource:
                 self.preview.error = f"camera {self.camera.name}: {str(exc).splitlines()[0] if str(exc) else exc!r}"
                 return
             with self._newest_lock:
-                self._newest = frame.image
+                self._newest = to_rgb(frame.image, frame.mosaic)  # (a raw Bayer frame as RGB)
             if self._camera_size is None:
                 h, w = frame.image.shape[:2]
                 self._camera_size = (w, h)

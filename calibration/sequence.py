@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from app.capture import CaptureLoop
+from app.decode.mosaic import to_rgb
 from core.errors import DeviceError
 from drivers.base import Camera, Projector, Trigger
 
@@ -93,7 +94,7 @@ def film_triggered(
                 dropped = loop.stats.dropped
             if ev.frameset is None:
                 continue
-            frames = [f.image for f in ev.frameset.frames]
+            frames = [to_rgb(f.image, f.mosaic) for f in ev.frameset.frames]  # (a raw Bayer frame as RGB)
             why = check(frames) if check is not None else None
             if why:
                 refused.append(why)
@@ -138,7 +139,7 @@ def film_stepped(
                 last_id = f.frame_id
             if broken:
                 break
-            frames.append(f.image)
+            frames.append(to_rgb(f.image, f.mosaic))
             ids.append(f.frame_id)
             stamps.append(f.timestamp_ns)
         why = broken or check(frames)

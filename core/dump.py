@@ -23,6 +23,7 @@ import yaml
 from core.calibration import Calibration
 from core.errors import InputError
 from core.imageio import encode_png, read_rgb
+from core.mosaic import mosaic_name
 from core.pattern_export import read_patterns, read_patterns_meta, write_patterns
 from core.patterns import PatternSet
 from core.yamlfile import parse_yaml
@@ -81,9 +82,12 @@ class DumpWriter:
         extra: dict | None = None,
         png_level: int = 1,
         pattern_files: dict[str, bytes] | None = None,
+        mosaic: str | None = None,
     ) -> None:
         """pattern_files: the files of `patterns`' export, already encoded (the poses of a calibration
-        capture share one pattern set: encoding its PNGs again for every pose cost ~2 s a pose)."""
+        capture share one pattern set: encoding its PNGs again for every pose cost ~2 s a pose). mosaic: the
+        Bayer mosaic of a single-chip camera's raw frames, stored as they are, one channel (core/mosaic.py)."""
+        self.mosaic = mosaic_name(mosaic, "mosaic")
         if png_level not in PNG_LEVELS:
             raise InputError(f"PNG compression level {png_level} must be 0..9")
         self._png = PNG_LEVELS[png_level]
@@ -107,6 +111,8 @@ class DumpWriter:
             header["calibration"] = "calibration.yaml"
         if depth_range_mm is not None:
             header["depth_range_mm"] = [float(depth_range_mm[0]), float(depth_range_mm[1])]
+        if self.mosaic is not None:
+            header["mosaic"] = self.mosaic
         header.update(extra or {})
         self._index = open(self.folder / INDEX, "w", encoding="utf-8")  # kept open: one line appended per frame
         self._index.write(yaml.safe_dump(header, sort_keys=False) + "frames:\n")
@@ -119,6 +125,11 @@ class DumpWriter:
             raise ValueError(f"pattern index {pattern} outside 0..{self.n_patterns - 1}")
         if self._last_ts is not None and timestamp_ns < self._last_ts:
             raise ValueError(f"timestamp {timestamp_ns} ns goes back in time (last {self._last_ts} ns)")
+        if (image.ndim == 2) != (self.mosaic is not None):
+            what = f"mosaic {self.mosaic}" if self.mosaic else "no mosaic"
+            raise DumpWriteError(
+                f"{self.folder}: a {image.shape} frame in a dump with {what} (raw Bayer frames are (H, W))"
+            )
         rel = f"frames/{self.count:06d}.png"
         tmp = self.folder / f"frames/{self.count:06d}.tmp.png"
         data = encode_png(image, self._png)
@@ -195,8 +206,14 @@ class Dump:
         r = self.meta.get("depth_range_mm")
         return None if r is None else (float(r[0]), float(r[1]))
 
+    @property
+    def mosaic(self) -> str | None:
+        """The Bayer mosaic of the raw one-channel frames, None for RGB frames (checked by read_dump)."""
+        return self.meta.get("mosaic")
+
     def load_frame(self, i: int) -> np.ndarray:
-        return read_rgb(self.folder / self.frames[i].file)
+        """Frame i: RGB (H, W, 3), or the raw Bayer frame (H, W) in a dump with a mosaic."""
+        return read_rgb(self.folder / self.frames[i].file, grey=self.mosaic is not None)
 
 
 def read_dump(folder: str | os.PathLike) -> Dump:
@@ -228,6 +245,10 @@ def read_dump(folder: str | os.PathLike) -> Dump:
     finite = isinstance(rng, list) and all(isinstance(v, int | float) and math.isfinite(v) for v in rng)
     if rng is not None and not (finite and len(rng) == 2 and 0 < rng[0] < rng[1]):
         raise InputError(f"{path}: field 'depth_range_mm' must be [near, far] with finite 0 < near < far")
+    if meta.get("mosaic") is not None:
+        if not isinstance(meta["mosaic"], str):
+            raise InputError(f"{path}: field 'mosaic' must be one of RGGB, GRBG, GBRG, BGGR, found {meta['mosaic']!r}")
+        meta["mosaic"] = mosaic_name(meta["mosaic"], f"{path}: field 'mosaic'")
     raw = meta.get("frames") or []
     if not isinstance(raw, list):
         raise InputError(f"{path}: field 'frames' must be a list")

@@ -19,11 +19,12 @@ from core.errors import DeviceError
 class Frame:
     """One camera image and its tags."""
 
-    image: np.ndarray  # RGB uint8 or uint16, (H, W, 3)
+    image: np.ndarray  # RGB uint8 or uint16, (H, W, 3); a raw Bayer frame (H, W) where mosaic is set
     frame_id: int  # the device's frame counter (gaps = dropped frames)
     timestamp_ns: int  # device time if it has one, else host monotonic time
     pattern: int | None = None  # index of the pattern it saw, once the capture loop tags it
     trigger_count: int | None = None  # the trigger box's counter for this exposure, if known
+    mosaic: str | None = None  # a single-chip camera's Bayer mosaic (core/mosaic.py) of a raw image, else None
 
 
 class CameraTimeoutError(DeviceError):

@@ -1,14 +1,15 @@
 """`slscan bench --live`: the live session on the virtual rig at 640x480 (targets in docs/performance.md).
 
 Three measurements, each a table row:
-- live: the whole pipeline (trigger-paced capture, decode worker(s), no view) for N frames:
+- live: the whole pipeline (trigger-paced capture, decode worker(s), no view) for N frames, with the
+  3-CCD-like virtual camera and with a single-chip RGGB one (raw frames, app/decode/mosaic.py):
   frames/s in, depth maps/s out, p50/p95 latency (host arrival of a set's newest frame -> depth
   ready), per-stage medians, dropped / refused / stale counts. Targets: 60 in, >= 55 out, p95 <= 50 ms.
 - pairing: the capture loop alone (no decode) over M frames with drops, duplicates, swaps and
   late flips injected at random; every set is checked against what the virtual camera really
   showed (its ground truth). Target: 0 mispaired.
-- record: the capture loop feeding the recorder (PNG level 0 and 1) for N frames. Target: every
-  tagged frame written, none lost.
+- record: the capture loop feeding the recorder (PNG level 0 and 1, and a single-chip RGGB camera's raw
+  frames at level 1) for N frames. Target: every tagged frame written, none lost.
 - view images: the operator view's image work per shown result at 640x480 (stripe and depth
   panels, the 3D point view), without a window. Target for the point view: well under 2 ms.
 The live row's notes give the CPU each thread used per camera frame: where the time outside
@@ -52,11 +53,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--live-workers", type=positive_int, default=DECODE_WORKERS, metavar="W", help=WORKERS_HELP)
 
 
-def _live_row(frames: int, workers: int) -> dict:
+def _live_row(frames: int, workers: int, bayer: str | None = None) -> dict:
     from app.live_pipeline import LivePipeline
     from app.session import build_session
 
-    session = build_session(None)
+    session = build_session(None, sim_overrides={"bayer": bayer} if bayer else None)
     processor = session.processor()
     cam = session.sim.camera
     mispaired = 0
@@ -75,7 +76,7 @@ def _live_row(frames: int, workers: int) -> dict:
     fig = pipe.figures()
     cpu = ", ".join(f"{k} {v:.2f}" for k, v in fig["cpu_ms_per_frame"].items())
     return {
-        "run": f"live, {workers} decode thread(s)",
+        "run": f"live{f' raw {bayer}' if bayer else ''}, {workers} decode thread(s)",
         "frames": fig["frames"],
         "frames_per_s": round(fig["frames_per_s"], 1),
         "depth_maps_per_s": round(fig["depth_per_s"], 1),
@@ -173,7 +174,7 @@ def _pairing_row(frames: int) -> dict:
     }
 
 
-def _record_row(frames: int, png_level: int) -> dict:
+def _record_row(frames: int, png_level: int, bayer: str | None = None) -> dict:
     import tempfile
     from pathlib import Path
 
@@ -181,7 +182,7 @@ def _record_row(frames: int, png_level: int) -> dict:
     from app.session import build_session, open_recorder
     from core.dump import read_dump
 
-    session = build_session(None)
+    session = build_session(None, sim_overrides={"bayer": bayer} if bayer else None)
     with tempfile.TemporaryDirectory(prefix="slscan-bench-rec-") as tmp:
         rec = open_recorder(session, Path(tmp) / "rec", png_level)
         pipe = LivePipeline(lambda: session.make_loop(timeout_s=3.0), None, max_frames=frames, recorder=rec)
@@ -193,7 +194,7 @@ def _record_row(frames: int, png_level: int) -> dict:
     w = np.asarray(stats.write_ms) if stats.write_ms else np.array([np.nan])
     fig = pipe.figures()
     return {
-        "run": f"record, PNG level {png_level}",
+        "run": f"record{f' raw {bayer}' if bayer else ''}, PNG level {png_level}",
         "frames": fig["frames"],
         "frames_per_s": round(fig["frames_per_s"], 1),
         "depth_maps_per_s": "",
@@ -215,10 +216,12 @@ def _record_row(frames: int, png_level: int) -> dict:
 
 def run(args: argparse.Namespace) -> list[dict]:
     frames = getattr(args, "live_frames", 600)
-    rows = [_live_row(frames, getattr(args, "live_workers", 1)), _view_row()]
+    workers = getattr(args, "live_workers", 1)
+    rows = [_live_row(frames, workers), _live_row(frames, workers, bayer="RGGB"), _view_row()]
     rows.append(_pairing_row(getattr(args, "live_pairing_frames", 10_000)))
     for level in (0, 1):
         rows.append(_record_row(frames, level))
+    rows.append(_record_row(frames, 1, bayer="RGGB"))  # one channel: a third of the bytes to compress
     return rows
 
 

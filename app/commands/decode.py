@@ -84,7 +84,7 @@ def _init(
     warnings.simplefilter("ignore", EmptyResultWarning)
     warnings.simplefilter("ignore", DepthRangeWarning)  # said once, by run()
     _STATE["dump"] = read_dump(folder)
-    _STATE["decoder"] = FrameSetDecoder(scheme, meta, cal, rng, seg, motion)
+    _STATE["decoder"] = FrameSetDecoder(scheme, meta, cal, rng, seg, motion, _STATE["dump"].mosaic)
     _STATE["range"] = rng
 
 

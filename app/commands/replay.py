@@ -70,6 +70,7 @@ def replay_session(dump_path: str, calibration: str | None = None, realtime: boo
             dtype = None  # an unreadable first frame: the replay camera reports it in its turn
         if dtype in (np.uint8, np.uint16):  # (other frames fail set by set, each with its file named)
             session.frame_dtype = dtype
+    session.mosaic = dump.mosaic
     return session
 
 

@@ -50,7 +50,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--cycles", type=positive_int, default=1, help="pattern cycles to render (default 1)")
     r.add_argument("--ideal", action="store_true", help="no noise, blur, crosstalk, ambient, gamma or shading")
     r.add_argument("--seed", type=non_negative_int, help="noise seed (default 0)")
-    r.add_argument("--bit-depth", type=int, choices=(8, 16), help="camera output bits (default 8)")
+    r.add_argument(
+        "--bit-depth", type=int, choices=(8, 12, 16), help="camera output bits (default 8; 12 fills uint16 frames)"
+    )
     r.add_argument(
         "--set",
         action="append",
@@ -128,7 +130,7 @@ def run_render(args: argparse.Namespace) -> int:
     extra = {"source": f"slscan sim render --scene {rig.scene.name}"}
     moving = rig.moving
     gt_dir = out / "ground_truth"
-    with DumpWriter(out, patterns, rig.calibration, rig.depth_range_mm, extra=extra) as writer:
+    with DumpWriter(out, patterns, rig.calibration, rig.depth_range_mm, extra=extra, mosaic=rig.mosaic) as writer:
         frame_ns = round(1e9 / 60)
         n = 0
         for _ in range(args.cycles):

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import threading
 import warnings
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -10,6 +12,7 @@ import numpy as np
 from app.decode.colour import camera_gamma_of
 from app.decode.depth_range import check_depth_range, copy_columns
 from app.decode.fast import average_frames
+from app.decode.mosaic import to_rgb
 from app.decode.motion import MotionParams, MotionRepair, check_motion_mode
 from app.decode.stripemap import StripeMap
 from app.decode.twoshot import SEGMENTATIONS
@@ -17,6 +20,7 @@ from app.schemes import get_scheme
 from app.triangulate import PointCloud, Triangulator
 from core.calibration import Calibration
 from core.errors import InputError
+from core.mosaic import mosaic_name
 
 DEFAULT_DEPTH_RANGE_MM = (100.0, 5000.0)
 
@@ -48,11 +52,19 @@ class FrameSetDecoder:
         depth_range_mm: tuple[float, float] | None = None,
         segmentation: str | None = None,
         motion: str = "auto",
+        mosaic: str | None = None,
     ) -> None:
         """segmentation: two-shot stripes from code runs (default), zero crossings or both merged
         (TwoShotParams: both covers grazing surfaces a little better at twice the time). motion: "auto" decodes a
         two-shot pair's newest frame alone where the scene moved since the frame before the pair (app/decode/motion.py;
-        the decode calls say which frame is newest and pass that previous frame), "off" always decodes the pair."""
+        the decode calls say which frame is newest and pass that previous frame), "off" always decodes the pair.
+        mosaic: the Bayer mosaic of raw (H, W) frames, which app/decode/mosaic.py reconstructs to RGB first; RGB
+        frames decode as they are."""
+        self.mosaic = mosaic_name(mosaic, "mosaic")
+        # the last raw frames and their reconstructions: live, each frame is in two sliding pairs and is the
+        # previous frame of a third set, so it is reconstructed once (entries hold the raw array: ids stay unique)
+        self._rgb_cache: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=4)
+        self._rgb_lock = threading.Lock()
         if segmentation is not None and segmentation not in SEGMENTATIONS:
             raise InputError(f"segmentation {segmentation!r}: choose {', '.join(SEGMENTATIONS)}")
         self.kind = get_scheme(scheme)  # an unknown name is an InputError
@@ -135,11 +147,34 @@ class FrameSetDecoder:
         frames, moving = self.repaired(list(frames), newest, previous)
         return _noting_motion(self.kind.stripes(self.decoder, frames), moving)
 
+    def rgb(self, frames: list[np.ndarray] | tuple[np.ndarray, ...]) -> list[np.ndarray]:
+        """frames as RGB: raw Bayer frames reconstructed along the stripes (app/decode/mosaic.py), RGB as they are."""
+        return [self.rgb_frame(f) for f in frames]
+
+    def rgb_frame(self, frame: np.ndarray | None) -> np.ndarray | None:
+        """One frame as RGB (rgb); None stays None."""
+        if frame is None or frame.ndim == 3:
+            return frame
+        if self.mosaic is None:
+            raise InputError(
+                f"a one-channel {frame.shape[1]}x{frame.shape[0]} frame: the camera's Bayer mosaic is not known"
+            )
+        with self._rgb_lock:
+            for raw, rgb in self._rgb_cache:
+                if raw is frame:
+                    return rgb
+        rgb = to_rgb(frame, self.mosaic)
+        with self._rgb_lock:
+            self._rgb_cache.append((frame, rgb))
+        return rgb
+
     def repaired(
         self, frames: list[np.ndarray], newest: int | None, previous: np.ndarray | None
     ) -> tuple[list[np.ndarray], float | None]:
         """(frames with the older frame of a two-shot pair repaired where the scene moved, the share of moving
-        pixels), or the frames as they are and None without motion, a newest index or a previous frame."""
+        pixels), or the frames as they are and None without motion, a newest index or a previous frame; raw Bayer
+        frames come back reconstructed to RGB (rgb)."""
+        frames, previous = self.rgb(frames), self.rgb_frame(previous)
         if self.motion is None or newest is None or previous is None:
             return frames, None
         if newest not in (0, 1):
@@ -165,6 +200,7 @@ class FrameSetDecoder:
         self.check_frames(frames, where)
         if previous is not None:
             self.check_frames([previous] * self.shots, f"{where} (previous frame)")
+        frames, previous = self.rgb(frames), self.rgb_frame(previous)
         sm, depth = self.stripes_and_depth(frames, newest, previous)
         texture = average_frames_of(frames[0], frames[1]) if self.kind.shots == 2 else frames[0]  # stripes cancel
         if not sm.valid.any():

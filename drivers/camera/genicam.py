@@ -341,7 +341,7 @@ class GenICamCamera:
         offset = _get(raw, "image_offset") or 0
         padding = _get(raw, "padding_x") or 0
         try:
-            image = pixels.to_rgb(memoryview(data)[offset:], self.pixel_format, int(w), int(h), int(padding))
+            image = pixels.to_frame(memoryview(data)[offset:], self.pixel_format, int(w), int(h), int(padding))
         except pixels.PixelFormatError as exc:
             raise UnsupportedFeatureError(f"{self.device}: {exc}") from None
         frame_id = _get(raw, "frame_id")
@@ -358,7 +358,8 @@ class GenICamCamera:
         if ts is None:
             ts = time.monotonic_ns()
         self.stats.frames += 1
-        return Frame(image=image, frame_id=int(frame_id), timestamp_ns=int(ts))
+        mosaic = pixels.camera_mosaic(self.pixel_format)
+        return Frame(image=image, frame_id=int(frame_id), timestamp_ns=int(ts), mosaic=mosaic)
 
     # -- features ---------------------------------------------------------------------------
     def _require_open(self) -> Any:

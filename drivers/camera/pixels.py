@@ -7,8 +7,10 @@ decoder's thresholds do not depend on the camera model; the shift is exact and r
 
 Supported (`FORMATS`): Mono8/10/12/14/16, Mono10p/12p (PFNC LSB-first bit packing),
 Mono10Packed/Mono12Packed (GigE Vision legacy packing), RGB8, BGR8, RGBa8, BGRa8,
-RGB/BGR 10/12/16 (16-bit containers), Bayer RG/GB/GR/BG in 8, 10, 12, 16 bits and 10p/12p,
-demosaiced with OpenCV. Unpacked multi-byte samples are little-endian (PFNC).
+RGB/BGR 10/12/16 (16-bit containers), Bayer RG/GB/GR/BG in 8, 10, 12, 16 bits and 10p/12p. A camera's
+frames come from `to_frame`: Bayer formats as the raw mosaic (H, W), one sample per photosite, which the
+decoder reconstructs along its stripes (app/decode/mosaic.py); `to_rgb` demosaics them with OpenCV (for
+tools that want a photograph). Unpacked multi-byte samples are little-endian (PFNC).
 """
 
 from __future__ import annotations
@@ -94,6 +96,14 @@ def camera_frame_dtype(fmt: object) -> np.dtype:
     return np.dtype(np.uint16 if deep else np.uint8)
 
 
+def camera_mosaic(fmt: object) -> str | None:
+    """The Bayer mosaic (core/mosaic.py) of the raw frames a camera set to pixel format fmt delivers (to_frame),
+    None for other formats, no format or an unknown one."""
+    if isinstance(fmt, str) and is_supported(fmt) and FORMATS[fmt].kind == "bayer":
+        return FORMATS[fmt].bayer
+    return None
+
+
 def line_bytes(fmt: str, width: int) -> int:
     """Bytes of one image line without padding (packed formats must end on a whole byte)."""
     lay = layout(fmt)
@@ -170,6 +180,18 @@ def samples(raw: bytes | np.ndarray, fmt: str, width: int, height: int, padding_
     flat = np.ascontiguousarray(lines).reshape(-1)
     unpack = _unpack_p if lay.packing == "p" else _unpack_gige
     return unpack(flat, lay.bits).reshape(height, n_line)
+
+
+def to_frame(raw: bytes | np.ndarray, fmt: str, width: int, height: int, padding_x: int = 0) -> np.ndarray:
+    """A camera's frame of one image buffer, as a new array: Bayer formats give the raw mosaic (H, W) (uint8, or
+    uint16 scaled to 16 bits; its mosaic is camera_mosaic(fmt)), every other format to_rgb's (H, W, 3)."""
+    lay = layout(fmt)
+    if lay.kind != "bayer":
+        return to_rgb(raw, fmt, width, height, padding_x)
+    s = samples(raw, fmt, width, height, padding_x)
+    if lay.bits not in (8, 16):
+        return s << np.uint16(16 - lay.bits)
+    return s.copy() if lay.packing == "none" else s
 
 
 def to_rgb(raw: bytes | np.ndarray, fmt: str, width: int, height: int, padding_x: int = 0) -> np.ndarray:

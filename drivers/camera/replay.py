@@ -115,6 +115,7 @@ class ReplayCamera:
             frame_id=rec.frame_id + self.lap * self._id_period,
             timestamp_ns=ts,
             pattern=rec.pattern,
+            mosaic=self.dump.mosaic,
         )
 
     def __iter__(self) -> Iterator[Frame]:

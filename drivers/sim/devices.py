@@ -25,7 +25,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from core.chroma import chroma_name
 from core.errors import DeviceError, InputError
+from core.mosaic import mosaic_name
 from core.suggest import unknown_name_hint
 from drivers.base import CAMERAS, PROJECTORS, TRIGGERS, CameraTimeoutError, Frame, register
 from drivers.sim.rig import PreparedPattern, VirtualRig
@@ -297,10 +299,15 @@ class SimCamera:
             for k in sorted(self._truth)[:4096]:
                 del self._truth[k]
         if free_run:  # no trigger: host time, no trigger count
-            return Frame(image=image, frame_id=tick, timestamp_ns=time.monotonic_ns(), pattern=None)
+            return Frame(
+                image=image, frame_id=tick, timestamp_ns=time.monotonic_ns(), pattern=None, mosaic=b.rig.mosaic
+            )
         # frame_id: the camera's own exposure counter; trigger_count: the box's (restarts after a reset)
         count = b.visible_id(tick)
-        return Frame(image=image, frame_id=tick, timestamp_ns=b.tick_time_ns(tick), pattern=None, trigger_count=count)
+        ts = b.tick_time_ns(tick)
+        return Frame(
+            image=image, frame_id=tick, timestamp_ns=ts, pattern=None, trigger_count=count, mosaic=b.rig.mosaic
+        )
 
     def grab(self, timeout_s: float = 1.0) -> Frame:
         b = self.bench
@@ -413,6 +420,8 @@ SIM_KEYS = (
     "seed",
     "stepped",
     "bit_depth",
+    "bayer",
+    "chroma",
     "effects",
     "faults",
     "buffer_frames",
@@ -464,6 +473,10 @@ def bench_from_config(config: object) -> SimBench:
             opts[key] = (v[0], v[1])
     if "bit_depth" in sim:
         opts["bit_depth"] = sim["bit_depth"]
+    if "bayer" in sim:
+        opts["bayer"] = mosaic_name(sim["bayer"], f"{where}: key 'sim.bayer'")
+    if "chroma" in sim:
+        opts["chroma"] = chroma_name(sim["chroma"], f"{where}: key 'sim.chroma'")
     effects = sim.get("effects") or {}
     if not isinstance(effects, dict):
         raise InputError(f"{where}: key 'sim.effects' must be a mapping")

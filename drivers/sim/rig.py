@@ -18,7 +18,8 @@ Image formation, per camera pixel with surface albedo rho (RGB), projector light
     P        = black_level + brightness * (pattern / 255) ** projector_gamma   (defocus-blurred)
     linear   = exposure * (rho * (g * P + ambient * ambient_color) + specular_lobe * P)
     linear  <- crosstalk @ linear, PSF blur, + shot and read noise
-    output   = (2**bits - 1) * clip(linear, 0, 1) ** (1 / camera_gamma)   (optionally Bayer-demosaiced)
+    output   = (2**bits - 1) * clip(linear, 0, 1) ** (1 / camera_gamma)
+           (12 bits: shifted to fill 16, as a deep GenICam camera's frames; with `bayer`, one channel per site)
 g = cos(incidence) * (d_ref / d)^2 where lit (0 in projector shadow or outside its image).
 `ideal=True` turns every effect off (g = 1 where lit), so a white plane returns the pattern exactly.
 """
@@ -33,7 +34,9 @@ import cv2
 import numpy as np
 
 from core.calibration import Calibration
+from core.chroma import chroma_name, subsample_chroma
 from core.errors import InputError
+from core.mosaic import mosaic_name, sample_mosaic
 from drivers.sim.kernels import affine3, light_to_linear, sensor, warm_up
 from drivers.sim.motion import MOTION_KEYS, Motion
 from drivers.sim.optics import Geometry, camera_rays, project
@@ -48,7 +51,7 @@ DEFAULT_CROSSTALK = np.array([[1.00, 0.10, 0.02], [0.08, 1.00, 0.11], [0.02, 0.0
 class RigOptions:
     """The optical and sensor effects (keyword overrides of `VirtualRig.from_preset`)."""
 
-    bit_depth: int = 8  # 8 or 16
+    bit_depth: int = 8  # 8, 12 (uint16 frames, samples shifted to fill 16 bits) or 16
     seed: int = 0
     # projector
     projector_gamma: float = 2.2  # light = (value / 255) ** gamma
@@ -76,7 +79,12 @@ class RigOptions:
     rotation_axis: tuple[float, float, float] = (0.0, -1.0, 0.0)  # direction, camera frame (default: up)
     rotation_center_mm: tuple[float, float, float] | None = None  # a point on the axis; None = moving objects' centre
     render_ahead: bool = False  # moving scenes: compose the next frame on a background thread (the same images)
-    bayer: bool = False  # a single-chip RGGB sensor, demosaiced by OpenCV (the paper used a 3-CCD camera)
+    # a single-chip sensor: its mosaic (RGGB, GRBG, GBRG, BGGR; true = RGGB), frames raw (H, W), one channel per
+    # site; false = one colour per pixel, as the paper's 3-CCD camera
+    bayer: bool | str = False
+    # colour subsampled across the rows as a webcam's YUYV (4:2:2) or MJPEG (4:2:0) delivers it (core/chroma.py);
+    # None = full colour
+    chroma: str | None = None
 
     def crosstalk_matrix(self) -> np.ndarray:
         c = self.crosstalk
@@ -243,8 +251,11 @@ class VirtualRig:
         def bad(key: str, msg: str) -> InputError:
             return InputError(f"{where}: option '{key}' {msg}, found {getattr(o, key)!r}")
 
-        if o.bit_depth not in (8, 16):
-            raise bad("bit_depth", "must be 8 or 16")
+        if o.bit_depth not in (8, 12, 16):
+            raise bad("bit_depth", "must be 8, 12 or 16")
+        mosaic_name(o.bayer, f"{where}: option 'bayer'")
+        if chroma_name(o.chroma, f"{where}: option 'chroma'") is not None and o.bayer:
+            raise bad("chroma", "does not go with a Bayer sensor (a webcam's colour is subsampled after demosaicing)")
         for key in ("projector_gamma", "camera_gamma", "exposure", "full_well"):
             if not (isinstance(getattr(o, key), int | float) and getattr(o, key) > 0):
                 raise bad(key, "must be a number > 0")
@@ -321,7 +332,19 @@ class VirtualRig:
 
     @property
     def max_value(self) -> int:
-        return (1 << self.options.bit_depth) - 1
+        """The full-scale value of a frame (12 bits: 4095 shifted to fill 16)."""
+        bits = self.options.bit_depth
+        return ((1 << bits) - 1) << (4 if bits == 12 else 0)
+
+    @property
+    def chroma(self) -> str | None:
+        """The camera's chroma subsampling ("4:2:2", "4:2:0"; core/chroma.py), None for full colour."""
+        return chroma_name(self.options.chroma, "option 'chroma'")
+
+    @property
+    def mosaic(self) -> str | None:
+        """The sensor's Bayer mosaic (core/mosaic.py), None for one colour per pixel."""
+        return mosaic_name(self.options.bayer, "option 'bayer'")
 
     def projector_light(self, levels: np.ndarray | int) -> np.ndarray:
         """True linear light of projector levels 0..255 (1 = full white): black level, brightness, gamma."""
@@ -595,8 +618,11 @@ class VirtualRig:
     # ------------------------------------------------------------------ frames
     def _make_lut(self) -> np.ndarray:
         x = np.arange(65536, dtype=np.float64) / 65535.0
-        y = np.power(x, 1.0 / self.options.camera_gamma) * self.max_value
-        return np.round(y).astype(np.uint16 if self.options.bit_depth == 16 else np.uint8)
+        bits = self.options.bit_depth
+        y = np.round(np.power(x, 1.0 / self.options.camera_gamma) * ((1 << bits) - 1))
+        if bits == 12:  # a 12-bit sample in a 16-bit frame fills it from the top (drivers/camera/pixels.py)
+            return (y.astype(np.uint16) << 4).astype(np.uint16)
+        return y.astype(np.uint16 if bits == 16 else np.uint8)
 
     def prepare(self, pattern: np.ndarray) -> PreparedPattern:
         """Convert a projector image (Hp, Wp, 3) uint8 once; `render` accepts the result."""
@@ -681,8 +707,10 @@ class VirtualRig:
             self._lut,
             out.reshape(-1),
         )
-        if o.bayer:
-            out = demosaic_rggb(out)
+        if self.mosaic is not None:
+            out = sample_mosaic(out, self.mosaic)
+        elif self.chroma is not None:
+            out = subsample_chroma(out, self.chroma)
         return out
 
 
@@ -706,19 +734,6 @@ class _Ahead:
         self.thread.join()
         if self.error is not None and raise_error:
             raise self.error
-
-
-BAYER_RGGB = getattr(cv2, "COLOR_BayerRGGB2RGB", cv2.COLOR_BayerBG2RGB)  # same code, older name
-
-
-def demosaic_rggb(img: np.ndarray) -> np.ndarray:
-    """Keep one channel per photosite (R G / G B), then let OpenCV demosaic it back to RGB."""
-    raw = np.empty(img.shape[:2], img.dtype)
-    raw[0::2, 0::2] = img[0::2, 0::2, 0]
-    raw[0::2, 1::2] = img[0::2, 1::2, 1]
-    raw[1::2, 0::2] = img[1::2, 0::2, 1]
-    raw[1::2, 1::2] = img[1::2, 1::2, 2]
-    return cv2.cvtColor(raw, BAYER_RGGB)
 
 
 def _finite(v: object) -> bool:

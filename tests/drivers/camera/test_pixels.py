@@ -93,6 +93,19 @@ def test_bayer_uniform_colour_demosaics_to_that_colour(fmt):
     assert (inner == want).all(), f"{fmt}: got {np.unique(inner, axis=0)[:3]}, want {want}"
 
 
+@pytest.mark.parametrize("fmt", BAYER)
+def test_bayer_frames_are_the_raw_mosaic_with_its_order(fmt):
+    """A camera's frame of a Bayer format is the sample plane itself (scaled to 16 bits), its mosaic named."""
+    lay = FORMATS[fmt]
+    w, h = 16, 12
+    mosaic = RNG.integers(0, 1 << lay.bits, (h, w))
+    frame = pixels.to_frame(encode(mosaic, fmt), fmt, w, h)
+    assert frame.shape == (h, w) and frame.dtype == (np.uint8 if lay.bits == 8 else np.uint16)
+    assert np.array_equal(frame, scaled(mosaic, lay.bits))
+    assert pixels.camera_mosaic(fmt) == lay.bayer
+    assert pixels.camera_mosaic("RGB8") is None and pixels.to_frame(bytes(w * h * 3), "RGB8", w, h).shape == (h, w, 3)
+
+
 def test_bayer_layouts_are_distinguished():
     """The four mosaics of one field decode differently unless told the right layout (no silent swap)."""
     mosaic = np.empty((12, 16), np.uint8)

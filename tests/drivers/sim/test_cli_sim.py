@@ -97,7 +97,7 @@ def test_bad_scene_file_impossible_set_up_and_bad_options_are_one_line(capsys, t
         "description: x\ndepth_range_mm: [600, 900]\nobjects:\n  - {type: sphere, center: [0, 0, -700], radius: 5}\n"
     )
     assert "impossible set-up" in in_process(capsys, *render, behind, "--out", tmp_path / "c")
-    msg = in_process(capsys, *render, "plane", "--set", "bit_depth=12", "--out", tmp_path / "d")
+    msg = in_process(capsys, *render, "plane", "--set", "bit_depth=10", "--out", tmp_path / "d")
     assert "bit_depth" in msg
     assert "--set" in in_process(capsys, *render, "plane", "--set", "ambient", "--out", tmp_path / "e")
     (tmp_path / "full").mkdir()

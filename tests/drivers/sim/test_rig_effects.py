@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from core.errors import InputError
 from drivers.sim.rig import VirtualRig
 from drivers.sim.scene import parse_scene
 
@@ -133,14 +134,25 @@ def test_specular_lobe_adds_a_highlight_only_where_it_should() -> None:
     assert np.all(gain[~glossy.ground_truth.lit] == 0)  # no highlight in projector shadow
 
 
-def test_bayer_sensor_keeps_flat_colours_and_blurs_one_pixel_stripes() -> None:
-    r = rig(bayer=True)
-    img = r.render(flat((200, 100, 30)))
-    assert np.all(img[2:-2, 2:-2] == (200, 100, 30))
-    from core.patterns import two_shot_patterns
+def test_bayer_sensor_records_one_channel_per_site_in_its_mosaic() -> None:
+    from core.mosaic import MOSAICS, sample_mosaic
 
-    stripes = two_shot_patterns((1024, 768)).images[0]
-    plain = rig().render(stripes)
-    demosaiced = r.render(stripes)
-    assert demosaiced.shape == plain.shape and demosaiced.dtype == plain.dtype
-    assert np.mean(demosaiced != plain) > 0.2  # interpolation across 2-pixel stripes: false colours
+    plain = rig().render(flat((200, 100, 30)))
+    for order in MOSAICS:
+        raw = rig(bayer=order).render(flat((200, 100, 30)))
+        assert raw.shape == plain.shape[:2] and raw.dtype == plain.dtype
+        assert np.array_equal(raw, sample_mosaic(plain, order))
+        h, w = raw.shape
+        assert raw[h // 2 & ~1, w // 2 & ~1] == {"R": 200, "G": 100, "B": 30}[order[0]]
+    assert rig(bayer=True).mosaic == "RGGB"  # the former `bayer: true`
+    assert rig(bayer=False).mosaic is None
+
+
+def test_bayer_option_names_its_field() -> None:
+    with pytest.raises(InputError, match=r"option 'bayer'.*RGBG.*not a Bayer mosaic"):
+        rig(bayer="RGBG")
+
+
+def test_twelve_bit_frames_fill_sixteen_bits() -> None:
+    img = rig(bit_depth=12).render(flat((200, 100, 30)))
+    assert img.dtype == np.uint16 and np.all(img % 16 == 0) and img.max() > 4095

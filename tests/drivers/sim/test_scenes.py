@@ -153,7 +153,7 @@ def test_bad_scene_fields_are_named(edit, field: str) -> None:
         ({"camera_size": (0, 480)}, "camera_size"),
         ({"camera_focal_px": -5.0}, "camera_focal_px"),
         ({"projector_target_mm": (0.0, 0.0, -500.0)}, "behind the camera"),
-        ({"bit_depth": 12}, "bit_depth"),
+        ({"bit_depth": 10}, "bit_depth"),
         ({"warp": 1}, "unknown option"),
     ],
 )
