@@ -138,6 +138,7 @@ class DumpWriter:
             f"- {{file: {rel}, pattern: {record.pattern}, frame_id: {record.frame_id}, "
             f"timestamp_ns: {record.timestamp_ns}}}\n"
         )
+        indexed = False
         try:
             # The frame's bytes complete under the temporary name, then its entry, then the rename: a kill
             # between the two leaves an entry whose file is a complete .tmp.png, which --repair renames into
@@ -145,9 +146,11 @@ class DumpWriter:
             _write_file(tmp, data)
             self._index.write(line)
             self._index.flush()
+            indexed = True
             os.replace(tmp, self.folder / rel)
         except OSError as exc:
-            _unlink_quietly(tmp)
+            if not indexed:  # (an indexed frame stays for --repair: it is complete)
+                _unlink_quietly(tmp)
             what = "disk full" if exc.errno in (errno.ENOSPC, errno.EDQUOT) else exc.strerror
             raise DumpWriteError(
                 f"{self.folder}: cannot write frame {self.count} ({what}); the {self.count} frames before it are kept",
