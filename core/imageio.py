@@ -31,6 +31,7 @@ def read_rgb(path: str | os.PathLike, *, grey: bool = False) -> np.ndarray:
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: image file not found")
+    _check_png_size(path)
     flags = cv2.IMREAD_UNCHANGED
     img = cv2.imread(str(path), flags)
     if img is None:
@@ -48,6 +49,41 @@ def read_rgb(path: str | os.PathLike, *, grey: bool = False) -> np.ndarray:
     elif img.shape[2] != 3:
         raise InputError(f"{path}: expected an RGB image, found {img.shape[2]} channels")
     return np.ascontiguousarray(img[:, :, ::-1])
+
+
+MAX_PIXELS = 16384 * 16384  # the largest camera or pattern size slscan takes anywhere
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+PNG_CHANNELS = {0: 1, 2: 3, 3: 1, 4: 2, 6: 4}  # by IHDR colour type: grey, RGB, palette, grey + alpha, RGBA
+
+
+def _check_png_size(path: Path) -> None:
+    """Refuse a PNG whose header asks for more memory than the machine has free, before decoding any pixel (a
+    small file can declare a 20000 x 20000 image: decoding it would take gigabytes)."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(26)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+    if len(head) < 26 or head[:8] != PNG_SIGNATURE or head[12:16] != b"IHDR":
+        return  # not a PNG: cv2 reads it (or says it cannot)
+    w, h = int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+    if w * h > MAX_PIXELS:
+        raise InputError(f"{path}: a {w}x{h} image is larger than any slscan reads (at most 16384x16384 pixels)")
+    depth, colour = head[24], head[25]
+    need = w * h * PNG_CHANNELS.get(colour, 4) * (2 if depth > 8 else 1) * 2  # decoded, then its RGB copy
+    free = _free_memory_bytes()
+    if free is not None and need > free:
+        raise InputError(
+            f"{path}: a {w}x{h} image needs {need / 2**20:.0f} MB to decode, more than the {free / 2**20:.0f} MB free"
+        )
+
+
+def _free_memory_bytes() -> int | None:
+    """Memory the process could still take: free physical memory (None where the system does not say)."""
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (AttributeError, ValueError, OSError):
+        return None
 
 
 def write_float_tiff(path: str | os.PathLike, data: np.ndarray) -> None:
