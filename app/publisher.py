@@ -81,7 +81,8 @@ class DepthPublisher:
         self._closing = False
         self._offered = 0  # sequence numbers given out
         self._last_index = -1  # newest set index offered: an older one is dropped (subscribers see capture order)
-        self.dropped = 0
+        self.dropped = 0  # every scan offered and not sent
+        self.stale = 0  # of those: older than one already sent
         self.published = 0
         self.send_ms: deque[float] = deque(maxlen=5000)  # build + send per scan, on the publisher thread
         self._thread = threading.Thread(target=self._run, name="publisher", daemon=True)
@@ -103,8 +104,9 @@ class DepthPublisher:
         with self._cv:
             seq = self._offered
             self._offered += 1
-            if result.index <= self._last_index:
+            if result.index <= self._last_index:  # (two decode workers: the older set finished second)
                 self.dropped += 1
+                self.stale += 1
                 return
             self._last_index = result.index
             if len(self._slots) >= QUEUE:
@@ -173,7 +175,8 @@ class DepthPublisher:
     def summary(self) -> str:
         ms = np.percentile(np.asarray(self.send_ms), 50) if self.send_ms else float("nan")
         return (
-            f"published {self.published} scan(s) to {self.address} ({self.dropped} dropped here; "
+            f"published {self.published} scan(s) to {self.address} ({self.dropped} dropped here, {self.stale} of them "
+            "older than one sent; "
             f"send {ms:.2f} ms median)"
         )
 
