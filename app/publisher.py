@@ -33,14 +33,16 @@ LINGER_MS = 200  # at close: how long the last messages (the end message) may ta
 _ADDRESS = re.compile(r"^tcp://(?P<host>\*|[A-Za-z0-9_.\-]+|\[[0-9A-Fa-f:.]+\]):(?P<port>[0-9]{1,5})$")
 
 
-def check_address(address: str) -> tuple[str, int]:
-    """tcp://HOST:PORT -> (host, port); anything else is an InputError naming the address."""
+def check_address(address: str, what: str = "--publish", bind: bool = True) -> tuple[str, int]:
+    """tcp://HOST:PORT -> (host, port); anything else is an InputError naming `what` and the address. HOST `*` (every
+    interface) only where the address is bound (bind)."""
     m = _ADDRESS.match(address or "")
-    if m is None:
-        raise InputError(f"--publish {address}: expected tcp://HOST:PORT (e.g. tcp://127.0.0.1:5556, tcp://*:5556)")
+    example = "tcp://127.0.0.1:5556, tcp://*:5556" if bind else "tcp://127.0.0.1:5556"
+    if m is None or (m["host"] == "*" and not bind):
+        raise InputError(f"{what} {address}: expected tcp://HOST:PORT (e.g. {example})")
     port = int(m["port"])
     if not 1 <= port <= 65535:
-        raise InputError(f"--publish {address}: port {port} is outside 1..65535")
+        raise InputError(f"{what} {address}: port {port} is outside 1..65535")
     return m["host"], port
 
 
@@ -88,9 +90,12 @@ class DepthPublisher:
         self._thread = threading.Thread(target=self._run, name="publisher", daemon=True)
 
     def attach(self, processor: LiveDecoder) -> None:
-        """The session's decoder: its calibration's digest goes in every header, its triangulator makes points."""
-        self._processor = processor
-        self._digest = calibration_digest(processor.calibration)
+        """The decoder of a pipeline about to start (again, after the view's scheme switch): its calibration's
+        digest goes in every header, its triangulator makes points. Sequence numbers go on; set indices restart."""
+        with self._cv:
+            self._processor = processor
+            self._digest = calibration_digest(processor.calibration)
+            self._last_index = -1  # a new LivePipeline counts its sets from 0 again
         if self.points:  # load (or compile) the point kernels now, not on the first scan: it dropped ~14 at 60 Hz
             w, h = processor.calibration.camera_size
             blank = np.zeros((h, w, 3), np.uint8)

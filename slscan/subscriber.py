@@ -64,7 +64,7 @@ class Subscriber:
     points and colours (InputError on the first scan if the publisher does not send them)."""
 
     def __init__(self, address: str, *, points: bool = False, timeout_s: float | None = None) -> None:
-        check_address(address)
+        check_address(address, "slscan.Subscriber", bind=False)
         zmq = import_zmq("slscan.Subscriber")
         self.address = address
         self.want_points = points

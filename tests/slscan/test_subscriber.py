@@ -33,6 +33,15 @@ def free_port() -> int:
 
 
 @pytest.fixture(scope="module")
+def sim_session_small():
+    """A 320x240 virtual-rig session and its decoder, for the in-process tests."""
+    from app.session import build_session
+
+    session = build_session(None, sim_overrides={"camera_size": [320, 240]})
+    return session, session.processor()
+
+
+@pytest.fixture(scope="module")
 def small_config(tmp_path_factory) -> str:
     """The virtual rig at 320x240."""
     data = yaml.safe_load(DEFAULT_CONFIG.read_text())
@@ -140,8 +149,9 @@ def test_a_port_in_use_is_one_line_naming_the_address(tmp_path, capsys):
 def test_publish_points_needs_publish_and_a_subscriber_needs_an_address(capsys):
     assert main(["live", "--headless", "--frames", "5", "--publish-points"]) == 2
     assert "--publish-points: needs --publish" in capsys.readouterr().err
-    with pytest.raises(slscan.InputError, match="expected tcp://HOST:PORT"):
-        slscan.Subscriber("localhost:5556")
+    for bad in ("localhost:5556", "tcp://*:5556"):
+        with pytest.raises(slscan.InputError, match=re.escape(f"slscan.Subscriber {bad}: expected tcp://HOST:PORT")):
+            slscan.Subscriber(bad)
 
 
 def test_a_subscriber_times_out_without_a_publisher():
@@ -165,3 +175,34 @@ def test_a_replay_publishes_its_scans_too(tmp_path, plane_dump):
     assert made >= 1 and f"published {made} scan(s)" in res.stdout
     assert len(got["rows"]) == made and bool(got["ended"])
     assert np.array_equal(got["depth"], read_float_tiff(tmp_path / "out" / "depth.tiff"))
+
+
+def test_one_publisher_serves_pipelines_one_after_another(sim_session_small):
+    """The view's scheme switch: a new LivePipeline (set indices from 0 again) on the same publisher; in-process,
+    the subscriber reading on its own thread."""
+    import threading
+
+    from app.live_pipeline import LivePipeline
+    from app.publisher import DepthPublisher
+
+    session, processor = sim_session_small
+    address = f"tcp://127.0.0.1:{free_port()}"
+    publisher = DepthPublisher(address)
+    made = 0
+    sequences: list[int] = []
+    with slscan.Subscriber(address, timeout_s=10.0) as sub:
+        reader = threading.Thread(target=lambda: sequences.extend(scan.sequence for scan in sub))
+        reader.start()
+        time.sleep(0.3)  # connected before the first scan (PUB sends nothing to a subscriber not yet there)
+        for _ in range(2):
+            publisher.attach(processor)
+            pipe = LivePipeline(
+                lambda: session.make_loop(timeout_s=3.0), processor, max_frames=30, on_result=publisher.offer
+            )
+            pipe.start()
+            pipe.wait()
+            made += pipe.stats.decoded
+        publisher.close()
+        reader.join(15.0)
+    assert publisher.dropped == 0 and made >= 40
+    assert sequences == list(range(made)) and sub.ended and sub.missed == 0
