@@ -86,6 +86,7 @@ class DepthPublisher:
         self.dropped = 0  # every scan offered and not sent
         self.stale = 0  # of those: older than one already sent
         self.published = 0
+        self.error: str | None = None  # the first failure to build or send a message (the scan was dropped)
         self.send_ms: deque[float] = deque(maxlen=5000)  # build + send per scan, on the publisher thread
         self._thread = threading.Thread(target=self._run, name="publisher", daemon=True)
 
@@ -129,17 +130,24 @@ class DepthPublisher:
                 if not self._slots:
                     return
                 seq, result = self._slots.popleft()
-                dropped = self.dropped
+                dropped, processor, digest = self.dropped, self._processor, self._digest  # (one pipeline's)
             t0 = time.perf_counter()
             try:
-                self._sock.send_multipart(self._message(seq, dropped, result), flags=self._zmq.NOBLOCK, copy=COPY)
+                message = self._message(seq, dropped, result, processor, digest)
+                self._sock.send_multipart(message, flags=self._zmq.NOBLOCK, copy=COPY)
                 self.published += 1
             except self._zmq.Again:  # (PUB drops rather than refuse; kept for a socket that refuses)
                 with self._cv:
                     self.dropped += 1
+            except Exception as exc:  # a bug here must not end the stream: the scan is dropped, counted, said
+                with self._cv:
+                    self.dropped += 1
+                    self.error = self.error or f"{type(exc).__name__}: {exc}"
             self.send_ms.append((time.perf_counter() - t0) * 1e3)
 
-    def _message(self, seq: int, dropped: int, result: LiveResult) -> list[Any]:
+    def _message(
+        self, seq: int, dropped: int, result: LiveResult, processor: LiveDecoder | None, digest: str
+    ) -> list[Any]:
         fs = result.frameset
         header = {
             "sequence": seq,
@@ -150,11 +158,11 @@ class DepthPublisher:
             "timestamp_ns": int(fs.newest.timestamp_ns),
             "arrival_ns": int(fs.arrival_ns),  # host monotonic clock: the set's newest frame arrived
             "ready_ns": int(result.done_ns),  # host monotonic clock: the depth map was ready
-            "calibration_sha256": self._digest,
+            "calibration_sha256": digest,
         }
         points = colors = None
-        if self.points and self._processor is not None:
-            cloud = self._processor.triangulator.points(result.depth, _colour_image(result))
+        if self.points and processor is not None:
+            cloud = processor.triangulator.points(result.depth, _colour_image(result))
             points, colors = cloud.xyz, cloud.rgb
         header["sent_ns"] = time.monotonic_ns()
         return encode_scan(header, result.depth, points, colors)
@@ -182,7 +190,7 @@ class DepthPublisher:
         return (
             f"published {self.published} scan(s) to {self.address} ({self.dropped} dropped here, {self.stale} of them "
             "older than one sent; "
-            f"send {ms:.2f} ms median)"
+            f"send {ms:.2f} ms median)" + (f"; first failure: {self.error}" if self.error else "")
         )
 
 
