@@ -228,6 +228,7 @@ class LiveView:
 
     def _start_pipeline(self):
         from app.owner_thread import HandOver
+        from app.publisher import result_sink
 
         # A window that belongs to this thread (pyglet) is served from the view's loop.
         hand_over = HandOver()
@@ -239,6 +240,7 @@ class LiveView:
             workers=self.args.workers,
             max_frames=self.args.frames,
             recorder=self.recorder,
+            on_result=result_sink(self.args, self.processor),  # --publish (app/publisher.py)
         )
         pipe.start()
         return pipe

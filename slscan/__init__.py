@@ -12,6 +12,9 @@
         for scan in scanner.scans(10):
             print(scan.frame_ids, scan.timestamp_ns, scan.valid.sum())
 
+    for scan in slscan.Subscriber("tcp://127.0.0.1:5556"):   # `slscan live --publish tcp://127.0.0.1:5556`
+        print(scan.sequence, scan.frame_ids, scan.depth.shape)
+
 Units and frames: millimetres; the camera frame (x right, y down, z forward); depth 0 = none
 (docs/formats.md). Errors a user can fix are slscan.SlscanError (InputError: a bad argument, file or frame;
 DeviceError: a device), with a one-line message naming what to fix.
@@ -30,6 +33,7 @@ from slscan.dump import Dump, FrameSets, read_dump
 from slscan.frameset import FrameSet
 from slscan.scan import Scan
 from slscan.scanner import Scanner
+from slscan.subscriber import StreamScan, Subscriber
 
 __all__ = [
     "Calibration",
@@ -43,6 +47,8 @@ __all__ = [
     "Scan",
     "Scanner",
     "SlscanError",
+    "StreamScan",
+    "Subscriber",
     "__version__",
     "make_patterns",
     "read_dump",

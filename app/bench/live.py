@@ -10,6 +10,9 @@ Three measurements, each a table row:
   showed (its ground truth). Target: 0 mispaired.
 - record: the capture loop feeding the recorder (PNG level 0 and 1, and a single-chip RGGB camera's raw
   frames at level 1) for N frames. Target: every tagged frame written, none lost.
+- published: the live row's session publishing every scan (--publish, app/publisher.py) to a subscriber in
+  another process on loopback: scans received of those made, sequence gaps, and the latency added (depth ready ->
+  the subscriber has the arrays). Targets: every scan received at 60 Hz, p50 latency <= 2 ms.
 - view images: the operator view's image work per shown result at 640x480 (stripe and depth
   panels, the 3D point view), without a window. Target for the point view: well under 2 ms.
 The live row's notes give the CPU each thread used per camera frame: where the time outside
@@ -19,6 +22,7 @@ decode + triangulate goes (the acquisition thread includes the virtual camera's 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import time
 
 import numpy as np
@@ -91,6 +95,64 @@ def _live_row(frames: int, workers: int, bayer: str | None = None) -> dict:
         "lost": 0,
         "error": (pipe.error + "; " if pipe.error else "")
         + f"CPU ms per frame by thread: {cpu} (acquisition includes the virtual camera's rendering)",
+    }
+
+
+def _published_row(frames: int, workers: int) -> dict:
+    """The live session with a subscriber process receiving its stream (app/bench/stream_receiver.py)."""
+    import json
+    import os
+    import socket
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from app.live_pipeline import LivePipeline
+    from app.publisher import DepthPublisher
+    from app.session import build_session
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        address = f"tcp://127.0.0.1:{s.getsockname()[1]}"
+    publisher = DepthPublisher(address)
+    root = str(Path(__file__).resolve().parents[2])  # the folder holding app/ and core/
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([root, os.environ.get("PYTHONPATH", "")])}
+    receiver = subprocess.Popen(
+        [sys.executable, "-m", "app.bench.stream_receiver", address], stdout=subprocess.PIPE, text=True, env=env
+    )
+    try:
+        assert receiver.stdout is not None
+        receiver.stdout.readline()  # "ready": connected
+        session = build_session(None)
+        processor = session.processor()
+        publisher.attach(processor)
+        pipe = LivePipeline(
+            lambda: session.make_loop(timeout_s=3.0),
+            processor,
+            workers=workers,
+            max_frames=frames,
+            on_result=publisher.offer,
+        )
+        pipe.start()
+        pipe.wait()
+    finally:
+        publisher.close()
+    out, _ = receiver.communicate(timeout=60)
+    got = json.loads(out.splitlines()[-1]) if out.strip() else {"received": 0, "missed": 0, "ended": False}
+    fig = pipe.figures()
+    return {
+        "run": "published (subscriber process)",
+        "frames": fig["frames"],
+        "frames_per_s": round(fig["frames_per_s"], 1),
+        "depth_maps_per_s": round(fig["depth_per_s"], 1),
+        "latency_p50_ms": round(got.get("latency_p50_ms", float("nan")), 2),
+        "latency_p95_ms": round(got.get("latency_p95_ms", float("nan")), 2),
+        "dropped": fig["dropped"],
+        "lost": fig["depth_maps"] - got["received"],
+        "error": f"received {got['received']} of {fig['depth_maps']} scans, {got['missed']} sequence gap(s), "
+        f"{publisher.dropped} dropped by the publisher ({publisher.stale} older than one sent); "
+        "latency = depth ready -> arrays in the subscriber"
+        + ("" if got["ended"] else "; the end message did not arrive"),
     }
 
 
@@ -217,7 +279,10 @@ def _record_row(frames: int, png_level: int, bayer: str | None = None) -> dict:
 def run(args: argparse.Namespace) -> list[dict]:
     frames = getattr(args, "live_frames", 600)
     workers = getattr(args, "live_workers", 1)
-    rows = [_live_row(frames, workers), _live_row(frames, workers, bayer="RGGB"), _view_row()]
+    rows = [_live_row(frames, workers), _live_row(frames, workers, bayer="RGGB")]
+    if importlib.util.find_spec("zmq") is not None:  # (slscan[stream])
+        rows.append(_published_row(frames, workers))
+    rows.append(_view_row())
     rows.append(_pairing_row(getattr(args, "live_pairing_frames", 10_000)))
     for level in (0, 1):
         rows.append(_record_row(frames, level))

@@ -14,6 +14,7 @@ from pathlib import Path
 from app.argtypes import positive_float, positive_int
 from app.live_pipeline import DECODE_WORKERS, WORKERS_HELP, LivePipeline, status_line
 from app.owner_thread import HandOver
+from app.publisher import add_publish_arguments, open_publisher, result_sink
 from app.session import Session, build_session, describe, open_recorder, save_result
 from core.errors import DeviceError, InputError
 from core.patterns import SCHEMES
@@ -26,6 +27,7 @@ examples:
   slscan live --headless --frames 600           # same loop, no window: prints the figures, saves the last scan
   slscan live --config rig.yaml                 # real camera, projector and trigger box
   slscan live --headless --frames 300 --record rec/   # and record the checked frames as a dump
+  slscan live --publish tcp://127.0.0.1:5556    # and stream every scan's depth (slscan.Subscriber reads it)
 
 keys in the window: space = snapshot (depth TIFF, PLY, PNGs), r = start/stop recording,
 m = switch scheme, q / Esc = quit.
@@ -50,6 +52,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--timeout", type=positive_float, default=2.0, metavar="S", help="camera timeout in seconds (default 2)"
     )
+    add_publish_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -62,13 +65,17 @@ def run(args: argparse.Namespace) -> int:
             "slscan live: no display for the operator window (DISPLAY is not set): running --headless", file=sys.stderr
         )
         args.headless = True
-    if not args.headless:
-        from app.view import run_view
-
+    publisher = open_publisher(args)  # bound before the session starts: a bad address is said first
+    try:
         session = build_session(args.config, scheme=args.scheme)
-        return run_view(session, args)
-    session = build_session(args.config, scheme=args.scheme)
-    return run_headless(session, args)
+        if not args.headless:
+            from app.view import run_view
+
+            return run_view(session, args)
+        return run_headless(session, args)
+    finally:
+        if publisher is not None:
+            publisher.close()
 
 
 def run_headless(session: Session, args: argparse.Namespace, label: str = "live") -> int:
@@ -87,7 +94,14 @@ def run_headless(session: Session, args: argparse.Namespace, label: str = "live"
         if recorder is not None:
             recorder.close()
         raise
-    pipe = LivePipeline(lambda: loop, processor, workers=args.workers, max_frames=frames, recorder=recorder)
+    pipe = LivePipeline(
+        lambda: loop,
+        processor,
+        workers=args.workers,
+        max_frames=frames,
+        recorder=recorder,
+        on_result=result_sink(args, processor),
+    )
     count = "every frame" if frames >= 10**12 else f"{frames} frames"
     print(f"slscan {label}: {session.scheme} on {describe(session)}, {count}", file=sys.stderr)
     interrupted = False
@@ -116,6 +130,8 @@ def run_headless(session: Session, args: argparse.Namespace, label: str = "live"
         raise DeviceError(pipe.error)
     fig = pipe.figures()
     print_figures(fig)
+    if getattr(args, "publisher", None) is not None:
+        print(args.publisher.summary())
     if recorder is not None:
         print(recorder.summary())
         if pipe.capture.tagged > pipe.capture.confirmed:

@@ -8,6 +8,7 @@ import numpy as np
 
 from app.argtypes import positive_float, positive_int
 from app.live_pipeline import DECODE_WORKERS, WORKERS_HELP
+from app.publisher import add_publish_arguments, open_publisher
 from core.errors import InputError
 
 HELP = "play a frame dump through the live pipeline and view (or --headless)"
@@ -17,6 +18,7 @@ examples:
   slscan replay rec/                         # in the operator window, at the recorded pace
   slscan replay rec/ --headless --out last/  # as fast as it decodes; prints the figures, saves the last scan
   slscan replay rec/ --headless --realtime   # at the recorded pace (as the live session saw it)
+  slscan replay rec/ --headless --realtime --publish tcp://127.0.0.1:5556   # and stream its scans
 
 The dump's own tags, calibration and depth range are used (--calibration overrides the calibration).
 """
@@ -36,6 +38,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--timeout", type=positive_float, default=2.0, metavar="S", help="camera timeout in seconds (default 2)"
     )
+    add_publish_arguments(p)
     p.set_defaults(func=run, record=None, png_level=0)
 
 
@@ -77,6 +80,15 @@ def replay_session(dump_path: str, calibration: str | None = None, realtime: boo
 def run(args: argparse.Namespace) -> int:
     if args.frames is not None and args.frames < 1:
         raise InputError(f"--frames {args.frames}: must be at least 1")
+    publisher = open_publisher(args)  # bound before the session starts: a bad address is said first
+    try:
+        return _run(args)
+    finally:
+        if publisher is not None:
+            publisher.close()
+
+
+def _run(args: argparse.Namespace) -> int:
     if args.headless:
         from app.commands.live import run_headless
 
