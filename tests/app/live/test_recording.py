@@ -193,16 +193,19 @@ def test_camera_that_stops_sending_times_out_and_the_dump_is_finalised(tmp_path,
     assert (out / "dump.yaml").read_text().endswith("\n")
 
 
-def test_ctrl_c_stops_slscan_dump_cleanly(tmp_path, slscan_process):
+@pytest.mark.parametrize(
+    ("sig", "code", "said"), [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")]
+)
+def test_ctrl_c_or_sigterm_stops_slscan_dump_cleanly_with_its_summary(tmp_path, slscan_process, sig, code, said):
     out = tmp_path / "rec"
     proc = slscan_dump(
         slscan_process, small_config(tmp_path), out, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
     )
     wait_for_frames(out, 4)
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(sig)
     stdout, stderr = proc.communicate(timeout=60)
-    assert proc.returncode == 130, stderr
-    assert "interrupted" in stderr and "Traceback" not in stderr
+    assert proc.returncode == code, stderr
+    assert f"{said}; the dump is finalised" in stderr and "Traceback" not in stderr
     assert "recorded" in stdout and "NOT recorded" not in stdout
     dump = read_dump(out)
     assert len(dump.frames) >= 4 and dump.dropped_tail == 0
@@ -223,21 +226,6 @@ def test_slscan_dump_frames_n_records_n_frames_past_refused_ones(tmp_path, capsy
     assert ids == sorted(set(ids))
     if frames == 20:
         assert "refused 1" in captured.out or "refused 2" in captured.out, captured.out  # the faults were seen
-
-
-def test_sigterm_stops_slscan_dump_like_ctrl_c_with_its_summary(tmp_path, slscan_process):
-    out = tmp_path / "rec"
-    proc = slscan_dump(
-        slscan_process, small_config(tmp_path), out, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
-    )
-    wait_for_frames(out, 4)
-    proc.send_signal(signal.SIGTERM)
-    stdout, stderr = proc.communicate(timeout=60)
-    assert proc.returncode == 143, stderr
-    assert "terminated; the dump is finalised" in stderr and "Traceback" not in stderr
-    assert "recorded" in stdout  # the summary, as after Ctrl-C
-    dump = read_dump(out)
-    assert len(dump.frames) >= 4 and dump.dropped_tail == 0
 
 
 @pytest.fixture
