@@ -10,7 +10,7 @@ import yaml
 
 from core.errors import InputError
 from core.imageio import read_rgb, write_rgb
-from core.patterns import CHANNEL_INDEX, PALETTE, SCHEMES, PatternSet, window_table
+from core.patterns import CHANNEL_INDEX, PALETTE, SCHEMES, PatternSet, check_window_keys, window_table
 from core.yamlfile import load_yaml_mapping
 
 FILENAME = "patterns.yaml"
@@ -107,6 +107,7 @@ def _check_stripe_fields(meta: dict, path: Path) -> None:
         ):
             raise InputError(f"{path}: field 'colors' must be 2 or more distinct letters from {''.join(PALETTE)}")
         n_codes = len(colors)
+    check_window_keys(n_codes, k, f"{path}: field 'k'")
     if not (isinstance(seq, list) and len(seq) >= k and all(_is_int(c) and 0 <= c < n_codes for c in seq)):
         raise InputError(f"{path}: field 'sequence' must be a list of at least k codes from 0 to {n_codes - 1}")
     try:

@@ -93,6 +93,7 @@ def one_shot_sequence(N: int = 3, k: int = 7) -> tuple[int, ...]:
     _check_k(k)
     if not isinstance(N, int) or not 2 <= N <= len(PALETTE):
         raise InputError(f"number of colours N={N!r} is out of range (2 to {len(PALETTE)})")
+    check_window_keys(N, k, "one-shot pattern")  # (a sequence no decoder can hold the table of is of no use)
     if n_one_shot(N, k) > MAX_WINDOWS:
         raise InputError(f"n(N={N}, k={k}) = {n_one_shot(N, k)} windows is more than {MAX_WINDOWS}")
     if k == 1:
@@ -110,11 +111,25 @@ def two_shot_sequence(m: int = 2, k: int = 7) -> tuple[int, ...]:
     _check_k(k)
     if not isinstance(m, int) or not 1 <= m <= 3:
         raise InputError(f"number of pattern channels m={m!r} is out of range (1 to 3)")
+    check_window_keys(2**m, k, "two-shot pattern")
     if n_two_shot(m, k) > MAX_WINDOWS:
         raise InputError(f"n2(m={m}, k={k}) = {n_two_shot(m, k)} windows is more than {MAX_WINDOWS}")
     if k == 1:
         return tuple(_gray(i) for i in range(2**m))  # a cyclic Gray code visits every code once
     return tuple(_eulerian_sequence(range(2**m), lambda a, b: (a ^ b).bit_count() == 1, k))
+
+
+MAX_WINDOW_KEYS = 1 << 24  # a decoder's window table: codes**k int32 entries, at most 64 MB
+
+
+def check_window_keys(n_codes: int, k: int, where: str) -> None:
+    """An InputError naming where unless a window table of n_codes**k keys fits MAX_WINDOW_KEYS."""
+    if n_codes**k > MAX_WINDOW_KEYS:
+        largest = max(j for j in range(1, 33) if n_codes**j <= MAX_WINDOW_KEYS)
+        raise InputError(
+            f"{where}: k={k} with {n_codes} codes needs a window table of {n_codes}^{k} entries; "
+            f"at most k={largest} for {n_codes} codes"
+        )
 
 
 def window_table(sequence: Sequence[int], k: int) -> dict[tuple[int, ...], int]:

@@ -9,7 +9,7 @@ import numpy as np
 
 from app.decode import fast
 from app.decode.stripemap import StripeMap
-from core.patterns import window_table
+from core.patterns import check_window_keys, window_table
 
 EMPTY_RANGE = np.zeros((1, 1), np.float32)
 
@@ -18,6 +18,7 @@ def window_lookup(sequence: Sequence[int], k: int, alphabet: int) -> np.ndarray:
     """Array over window keys sum(code[t] * alphabet**t) -> start index in the sequence, or -1.
     int32, the narrowest values gather instructions read (4**7 keys take 64 KB; a row's ~300 windows touch a
     small part of it)."""
+    check_window_keys(alphabet, k, "scheme.k")
     table = np.full(alphabet**k, -1, np.int32)
     powers = alphabet ** np.arange(k)
     for window, start in window_table(sequence, k).items():

@@ -1,4 +1,4 @@
-"""Every YAML slscan reads is bounded: a deeply nested document is one clear error naming the file, exit 2."""
+"""Inputs bounded where they are read (YAML nesting and size, infinite numbers, window tables): one line, exit 2."""
 
 from __future__ import annotations
 
@@ -44,3 +44,14 @@ def test_frame_ids_that_overflow_and_an_infinite_depth_range_are_refused(tmp_pat
     (dump / "dump.yaml").write_text(head + "depth_range_mm: [600, .inf]\nframes:\n")
     with pytest.raises(InputError, match="depth_range_mm"):
         read_dump(dump)
+
+
+def test_a_window_length_whose_table_no_machine_holds_is_refused_naming_k(tmp_path, capsys):
+    # 4**16 keys (16 GB of table) for two-shot GB, 8**12 for RGB: refused before any allocation
+    base = ["patterns", "--scheme", "two-shot", "--size", "640x480"]
+    assert main([*base, "--k", "16", "--out", str(tmp_path / "p")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "k=16 with 4 codes" in err[0] and "at most k=12" in err[0], err
+    args = ["--channels", "RGB", "--k", "12", "--out", str(tmp_path / "q")]
+    assert main([*base, *args]) == 2
+    assert "k=12 with 8 codes" in capsys.readouterr().err
