@@ -11,7 +11,7 @@ from collections.abc import Sequence
 from typing import NoReturn
 
 from app import commands
-from app.termination import Terminated, exit_status, stop_cleanly_on_sigterm
+from app.termination import exit_status, stop_cleanly_on_sigterm, stopped_by
 from core.errors import SlscanError
 
 DESCRIPTION = """\
@@ -90,9 +90,7 @@ def _main(argv: Sequence[str] | None) -> int:
         print(f"slscan {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:
-        print(
-            f"slscan {args.command}: {'terminated' if isinstance(exc, Terminated) else 'interrupted'}", file=sys.stderr
-        )
+        print(f"slscan {args.command}: {stopped_by(exc)}", file=sys.stderr)
         return exit_status(exc)
 
 

@@ -32,3 +32,8 @@ def stop_cleanly_on_sigterm() -> None:
 def exit_status(exc: KeyboardInterrupt) -> int:
     """143 for SIGTERM, 130 for Ctrl-C."""
     return EXIT_STATUS if isinstance(exc, Terminated) else 130
+
+
+def stopped_by(exc: KeyboardInterrupt) -> str:
+    """What the operator is told: "terminated" (SIGTERM) or "interrupted" (Ctrl-C)."""
+    return "terminated" if isinstance(exc, Terminated) else "interrupted"

@@ -36,6 +36,7 @@ from importlib import metadata
 from pathlib import Path
 
 from core.errors import SlscanError
+from core.jit_cache import cache_base
 
 NUMBA_FLOOR = (0, 62)
 LLVMLITE_FLOOR = (0, 45)
@@ -121,14 +122,6 @@ def source_digest(root: Path | None = None) -> str:
             if b"numba" in text:
                 h.update(path.relative_to(root).as_posix().encode() + b"\0" + text + b"\0")
     return h.hexdigest()[:16]
-
-
-def cache_base() -> Path:
-    env = os.environ.get("NUMBA_CACHE_DIR")
-    if env:
-        return Path(env)
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    return (Path(xdg) if xdg else Path.home() / ".cache") / "slscan" / "numba"
 
 
 def use_source_keyed_cache() -> Path:

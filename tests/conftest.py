@@ -18,9 +18,10 @@ import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterator
-from pathlib import Path
 
 import pytest
+
+from core.jit_cache import cache_base  # (not core.jit: importing it fixes numba's cache folder)
 
 XVFB_SIZE = (1024, 768)  # the projector tests' fullscreen window is this size
 
@@ -176,15 +177,6 @@ SAME_WORKER = {
 }
 
 
-def _numba_cache_base() -> Path:
-    """core.jit.cache_base(), without importing core.jit (that would set numba's cache folder for good)."""
-    env = os.environ.get("NUMBA_CACHE_DIR")
-    if env:
-        return Path(env)
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    return (Path(xdg) if xdg else Path.home() / ".cache") / "slscan" / "numba"
-
-
 # What the warm-up compiles: the live two-shot decoder at uint8, as the sim_session/rig_session fixtures build it,
 # which is also what `slscan live/dump/decode` and the golden two-shot cases run (with the virtual rig's kernels).
 WARM_UP = """
@@ -201,7 +193,7 @@ def pytest_xdist_setupnodes(config: pytest.Config, specs) -> None:
     workers do not both compile it. On a warm cache it is a few seconds of loading.
     """
     tr = config.pluginmanager.get_plugin("terminalreporter")
-    base = _numba_cache_base()
+    base = cache_base()
     t0 = time.monotonic()
     run = subprocess.run(
         [sys.executable, "-c", WARM_UP],
@@ -230,7 +222,7 @@ def _numba_cache_per_worker() -> None:
         return
     if "core.jit" in sys.modules:  # core.jit reads NUMBA_CACHE_DIR when imported
         raise RuntimeError("tests/conftest.py: core.jit was imported before the numba cache was set per worker")
-    base = _numba_cache_base()
+    base = cache_base()
     own = base / f"xdist-{worker}"
     for index in base.glob("slscan-*/*/*.nbi"):  # <base>/slscan-<digest>/<source folder>/<module.function>.nbi
         folder = own / index.parent.relative_to(base)

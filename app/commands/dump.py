@@ -9,7 +9,7 @@ import time
 from app.argtypes import positive_float, positive_int
 from app.live_pipeline import LivePipeline
 from app.owner_thread import HandOver
-from app.termination import Terminated, exit_status
+from app.termination import exit_status, stopped_by
 from core.dump import repair_dump
 from core.errors import InputError
 from core.patterns import SCHEMES
@@ -119,8 +119,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"slscan dump: {recorder.message}", file=sys.stderr)
         return 2
     if interrupted is not None:
-        how = "terminated" if isinstance(interrupted, Terminated) else "interrupted"
-        print(f"slscan dump: {how}; the dump is finalised", file=sys.stderr)
+        print(f"slscan dump: {stopped_by(interrupted)}; the dump is finalised", file=sys.stderr)
         return exit_status(interrupted)
     if pipe.stats.recorded < args.frames:
         print(

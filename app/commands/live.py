@@ -16,6 +16,7 @@ from app.live_pipeline import DECODE_WORKERS, WORKERS_HELP, LivePipeline, status
 from app.owner_thread import HandOver
 from app.publisher import add_publish_arguments, open_publisher, result_sink
 from app.session import Session, build_session, describe, open_recorder, save_result
+from app.termination import exit_status, stopped_by
 from core.errors import DeviceError, InputError
 from core.patterns import SCHEMES
 
@@ -104,7 +105,7 @@ def run_headless(session: Session, args: argparse.Namespace, label: str = "live"
     )
     count = "every frame" if frames >= 10**12 else f"{frames} frames"
     print(f"slscan {label}: {session.scheme} on {describe(session)}, {count}", file=sys.stderr)
-    interrupted = False
+    interrupted: KeyboardInterrupt | None = None
     pipe.start()
     try:
         try:
@@ -114,8 +115,8 @@ def run_headless(session: Session, args: argparse.Namespace, label: str = "live"
                 if time.monotonic() - last >= 1.0 and sys.stderr.isatty():
                     last = time.monotonic()
                     print("\r" + status_line(pipe.figures()), end="", file=sys.stderr, flush=True)
-        except KeyboardInterrupt:
-            interrupted = True
+        except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (app/termination.py)
+            interrupted = exc
             pipe.stop()
         while pipe.running:  # the loop closes the window through this thread
             hand_over.wait(0.01)
@@ -152,9 +153,9 @@ def run_headless(session: Session, args: argparse.Namespace, label: str = "live"
             file=sys.stderr,
         )
         return 2
-    if interrupted:
-        print(f"slscan {label}: interrupted; stopped cleanly", file=sys.stderr)
-        return 130
+    if interrupted is not None:
+        print(f"slscan {label}: {stopped_by(interrupted)}; stopped cleanly", file=sys.stderr)
+        return exit_status(interrupted)
     return 0
 
 

@@ -198,7 +198,7 @@ def _envelopes(row, r1, r2, hi1, lo1, hi2, lo2, spans):
     for radius, hi, lo in ((r1, hi1, lo1), (r2, hi2, lo2)):
         ends = (range(0, min(radius, W)), range(max(W - radius, min(radius, W)), W))
         for end in ends:  # the pixels whose window the row's ends cut short
-            _window_direct(row, row, radius, hi, lo, end)
+            _window_direct(row, radius, hi, lo, end)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -235,16 +235,17 @@ def _window_from(span_hi, span_lo, radius, p, hi, lo):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _window_direct(up, down, radius, hi, lo, pixels):
-    W = up.shape[0]
+def _window_direct(row, radius, hi, lo, pixels):
+    """hi[x], lo[x] = the extremes of row over x's window clipped at the row's ends, for x in pixels."""
+    W = row.shape[0]
     for x in pixels:
         first = max(x - radius, 0)
         last = min(x + radius, W - 1)
-        u = up[first]
-        v = down[first]
+        u = row[first]
+        v = row[first]
         for i in range(first + 1, last + 1):
-            u = up[i] if up[i] > u else u
-            v = down[i] if down[i] < v else v
+            u = row[i] if row[i] > u else u
+            v = row[i] if row[i] < v else v
         hi[x] = u
         lo[x] = v
 
