@@ -13,7 +13,7 @@ from __future__ import annotations
 import errno
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import cv2
@@ -134,10 +134,7 @@ class DumpWriter:
         tmp = self.folder / f"frames/{self.count:06d}.tmp.png"
         data = encode_png(image, self._png)
         record = FrameRecord(rel, int(pattern), int(frame_id), int(timestamp_ns))
-        line = (
-            f"- {{file: {rel}, pattern: {record.pattern}, frame_id: {record.frame_id}, "
-            f"timestamp_ns: {record.timestamp_ns}}}\n"
-        )
+        line = _index_line(record)
         indexed = False
         try:
             # The frame's bytes complete under the temporary name, then its entry, then the rename: a kill
@@ -185,7 +182,11 @@ class Dump:
     folder: Path
     meta: dict
     frames: list[FrameRecord]
-    dropped_tail: int = 0  # entries after the last complete frame (a writer that was killed)
+    tail: list[FrameRecord] = field(default_factory=list)  # entries after the last complete frame (a killed writer)
+
+    @property
+    def dropped_tail(self) -> int:
+        return len(self.tail)
 
     @property
     def scheme(self) -> str:
@@ -268,15 +269,19 @@ def read_dump(folder: str | os.PathLike) -> Dump:
             raise InputError(f"{path}: frames[{i}].pattern is negative")
         frames.append(rec)
     # A frame whose file is missing ends the readable part only if nothing after it exists.
-    dropped = 0
+    tail: list[FrameRecord] = []
     while frames and not (folder / frames[-1].file).is_file():
-        frames.pop()
-        dropped += 1
+        tail.insert(0, frames.pop())
     for i, rec in enumerate(frames):
         if not (folder / rec.file).is_file():
             raise InputError(f"{folder / rec.file}: frame file listed in {path} (frames[{i}]) is missing")
     meta["frames"] = None
-    return Dump(folder, meta, frames, dropped)
+    return Dump(folder, meta, frames, tail)
+
+
+def _index_line(r: FrameRecord) -> str:
+    """A frame's one-line entry under `frames:` (the writer appends it, repair writes the list whole)."""
+    return f"- {{file: {r.file}, pattern: {r.pattern}, frame_id: {r.frame_id}, timestamp_ns: {r.timestamp_ns}}}\n"
 
 
 def _inside(folder: Path, rel: object, field_name: str) -> Path:
@@ -353,18 +358,12 @@ def repair_dump(folder: str | os.PathLike) -> RepairReport:
     for p in (path, frames_dir):
         if p.is_symlink() or not _resolves_inside(folder, p):
             raise InputError(f"{p}: is a symlink; --repair changes nothing through a symlink")
-    entries = _index_entries(path)
     listed = list(dump.frames)
     recovered = 0
-    # the entries after the last complete frame: the one whose rename a kill prevented is recovered
-    for entry in entries[len(listed) : len(listed) + dump.dropped_tail]:
-        try:
-            rec = FrameRecord(
-                str(entry["file"]), int(entry["pattern"]), int(entry["frame_id"]), int(entry["timestamp_ns"])
-            )
-            final = _inside(folder, rec.file, "frames[].file")
-        except (TypeError, KeyError, ValueError, InputError):
-            break
+    # the entries after the last complete frame (checked by read_dump): the one whose rename a kill prevented
+    # is recovered
+    for rec in dump.tail:
+        final = folder / rec.file
         tmp = final.with_name(final.stem + ".tmp.png")
         ok_order = not listed or (rec.frame_id > listed[-1].frame_id and rec.timestamp_ns >= listed[-1].timestamp_ns)
         if not (ok_order and tmp.is_file() and not tmp.is_symlink() and _complete_png(tmp)):
@@ -373,10 +372,7 @@ def repair_dump(folder: str | os.PathLike) -> RepairReport:
         listed.append(rec)
         recovered += 1
     header = {k: v for k, v in dump.meta.items() if k != "frames"}
-    lines = [
-        f"- {{file: {r.file}, pattern: {r.pattern}, frame_id: {r.frame_id}, timestamp_ns: {r.timestamp_ns}}}\n"
-        for r in listed
-    ]
+    lines = [_index_line(r) for r in listed]
     backup = _free_name(folder, INDEX + ".bak")
     try:
         os.link(path, backup)  # (the old index's file itself: the rename below gives the new one its name)
@@ -392,7 +388,7 @@ def repair_dump(folder: str | os.PathLike) -> RepairReport:
         orphans.mkdir(exist_ok=True)
         for p in strays:
             os.replace(p, _free_name(orphans, p.name))  # (a symlink moves as the link itself)
-    return RepairReport(len(listed), len(entries) - len(listed), recovered, len(strays), backup.name)
+    return RepairReport(len(listed), dump.dropped_tail - recovered, recovered, len(strays), backup.name)
 
 
 def _complete_png(path: Path) -> bool:
@@ -415,11 +411,3 @@ def _free_name(folder: Path, name: str) -> Path:
         n += 1
         candidate = folder / f"{name}.{n}"
     return candidate
-
-
-def _index_entries(path: Path) -> list:
-    """The frame entries of an index's complete lines, as the reader parses them (read_dump checked them)."""
-    text = path.read_bytes().decode("utf-8", errors="replace")
-    meta = parse_yaml(text[: text.rfind("\n") + 1])
-    entries = meta.get("frames") if isinstance(meta, dict) else None
-    return entries if isinstance(entries, list) else []
