@@ -41,7 +41,9 @@ class Config:
                     raise InputError(f"{self.path}: missing key '{dotted}'")
                 return default
             node = node[part]
-        if types is not None and not isinstance(node, types):
+        wanted = (types,) if isinstance(types, type) else types
+        # (YAML's true/false are Python bools, which isinstance counts as ints: a number is never a bool)
+        if types is not None and (not isinstance(node, types) or (isinstance(node, bool) and bool not in wanted)):
             names = types.__name__ if isinstance(types, type) else " or ".join(t.__name__ for t in types)
             raise InputError(f"{self.path}: key '{dotted}' must be {names}, found {node!r}")
         return node

@@ -25,6 +25,7 @@ from app.rig_devices import make_device, rig_driver
 from app.schemes import get_scheme
 from core.calibration import Calibration
 from core.chroma import chroma_of_fourcc
+from core.depth_range_field import depth_range_field
 from core.errors import DeviceError, InputError
 from core.patterns import SCHEMES, PatternSet, make_patterns
 from drivers.base import CAMERAS, PROJECTORS, TRIGGERS
@@ -34,6 +35,10 @@ SIM_MODULE = "drivers.sim.devices"
 
 
 # ------------------------------------------------------------------------------------ session
+
+
+RECORD_START_S = 3.0  # a recording starts only with room for this many seconds of frames
+SCAN_FRAMES = 8  # a saved scan (depth, cloud, PNGs) takes about as much as this many camera frames
 
 
 @dataclass
@@ -75,6 +80,24 @@ class Session:
     def motion(self) -> str:
         """Two-shot motion handling from the config's scheme.motion: auto (default; a replayed dump too) or off."""
         return motion_mode(self.config)
+
+    def frame_bytes(self) -> int:
+        """The bytes of one camera frame (a raw mosaic has one sample per pixel), as a PNG of level 0 stores it."""
+        w, h = self.calibration.camera_size
+        return w * h * (1 if self.mosaic else 3) * np.dtype(self.frame_dtype).itemsize
+
+    def check_outputs(self, scan_folder: str | os.PathLike | None, record_folder: str | os.PathLike | None) -> None:
+        """Refuse, before the session starts, a scan folder or recording target that could not take its output:
+        not a folder (/dev/full), not writable, or a disk without room for a scan, or for RECORD_START_S seconds
+        of frames to record (app/fsutil.check_output_folder)."""
+        from app.fsutil import check_output_folder
+
+        if scan_folder is not None:
+            check_output_folder(scan_folder, SCAN_FRAMES * self.frame_bytes())
+        if record_folder is not None:
+            if Path(record_folder).exists() or Path(record_folder).is_symlink():
+                raise InputError(f"{record_folder}: already exists; a dump is never overwritten (choose another)")
+            check_output_folder(record_folder, int(RECORD_START_S * self.rate_hz) * self.frame_bytes())
 
     def processor(self) -> LiveDecoder:
         """The session's decoder, its kernels compiled or loaded before any frame arrives (LiveDecoder.warm_up): a
@@ -164,11 +187,7 @@ def build_session(
     rate = float(cfg.get("capture.rate_hz", 60, types=(int, float)))  # type: ignore[arg-type]
     if not 1 <= rate <= 250:
         raise InputError(f"{cfg.path}: key 'capture.rate_hz' must be 1..250, found {rate}")
-    depth_range = cfg.get("depth_range_mm", None)
-    if depth_range is not None and not (
-        isinstance(depth_range, list) and len(depth_range) == 2 and 0 < depth_range[0] < depth_range[1]
-    ):
-        raise InputError(f"{cfg.path}: key 'depth_range_mm' must be [near, far] with 0 < near < far")
+    depth_range = depth_range_field(cfg.get("depth_range_mm", None), f"{cfg.path}: key 'depth_range_mm'")
 
     cam_name, cam_opts = rig_driver(cfg, "camera", CAMERAS)
     proj_name, proj_opts = rig_driver(cfg, "projector", PROJECTORS)
@@ -312,6 +331,8 @@ def _sim_session(
 def open_recorder(session: Session, folder: str | os.PathLike, png_level: int = 0):
     from app.recorder import Recorder
     from core.dump import DumpWriter
+
+    session.check_outputs(None, folder)
 
     writer = DumpWriter(
         folder,

@@ -27,6 +27,7 @@ from core.calibration import Calibration
 from core.dump import Dump, DumpWriter, read_dump
 from core.errors import InputError
 from core.imageio import read_rgb, write_rgb
+from core.paths import resolves_inside
 from core.patterns import PatternSet
 from core.yamlfile import parse_yaml
 
@@ -116,7 +117,7 @@ class Capture:
         except (OSError, yaml.YAMLError, UnicodeDecodeError):
             return None
         g = doc.get("camera_gamma") if isinstance(doc, dict) else None
-        return float(g) if isinstance(g, int | float) and not isinstance(g, bool) and g > 0 else None
+        return float(g) if isinstance(g, int | float) and not isinstance(g, bool) and 0.1 <= g <= 10 else None
 
 
 def open_capture(folder: str | os.PathLike) -> Capture:
@@ -218,11 +219,20 @@ def read_levels(folder: Path) -> list[tuple[str, int, np.ndarray]]:
         raise InputError(f"{path}: field 'format' must be {LEVELS_FORMAT!r}")
     out = []
     for i, e in enumerate(doc.get("frames") or []):
-        if not isinstance(e, dict) or e.get("channel") not in tuple(CHANNELS) or not isinstance(e.get("level"), int):
+        level = e.get("level") if isinstance(e, dict) else None
+        if (
+            not isinstance(e, dict)
+            or e.get("channel") not in tuple(CHANNELS)
+            or not isinstance(level, int)
+            or isinstance(level, bool)
+            or not 0 <= level <= 255
+        ):
             raise InputError(f"{path}: frames[{i}] needs file, channel (R, G or B) and level (0..255)")
         f = e.get("file")
         if not isinstance(f, str) or Path(f).is_absolute() or ".." in Path(f).parts:
             raise InputError(f"{path}: frames[{i}].file must be a file name inside {folder}")
+        if not resolves_inside(folder, folder / f):
+            raise InputError(f"{path}: frames[{i}].file = {f!r} is a symlink that leaves {folder}")
         out.append((e["channel"], int(e["level"]), read_rgb(folder / f)))
     if not out:
         raise InputError(f"{path}: no frames listed")

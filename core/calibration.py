@@ -131,10 +131,22 @@ class Calibration:
 
     def check(self, where: str = "calibration") -> None:
         """Refuse values no real rig has (the error names the field)."""
-        for key in ("camera_matrix", "projector_matrix"):
+        for key, size in (("camera_matrix", self.camera_size), ("projector_matrix", self.projector_size)):
             K = getattr(self, key)
             if K[0, 0] <= 0 or K[1, 1] <= 0 or abs(K[2, 2] - 1) > 1e-9:
                 raise InputError(f"{where}: field '{key}' is not a camera matrix (fx, fy > 0, K[2,2] = 1)")
+            if max(abs(K[1, 0]), abs(K[2, 0]), abs(K[2, 1])) > 1e-9:
+                raise InputError(f"{where}: field '{key}' is not upper-triangular (K[1,0], K[2,0], K[2,1] must be 0)")
+            problem = _implausible_intrinsics(K, size)
+            if problem:
+                raise InputError(f"{where}: field '{key}' {problem}")
+        for key in ("camera_distortion", "projector_distortion"):
+            d = getattr(self, key)
+            if np.max(np.abs(d[[0, 1, 4]])) > MAX_RADIAL or np.max(np.abs(d[[2, 3]])) > MAX_TANGENTIAL:
+                raise InputError(
+                    f"{where}: field '{key}' is implausible (|k1|, |k2|, |k3| <= {MAX_RADIAL:g}, "
+                    f"|p1|, |p2| <= {MAX_TANGENTIAL:g}): {np.array2string(d, precision=4)}"
+                )
         if abs(np.linalg.det(self.R) - 1) > 1e-3 or not np.allclose(self.R @ self.R.T, np.eye(3), atol=1e-3):
             raise InputError(f"{where}: field 'R' is not a rotation matrix")
         if self.baseline_mm <= 0:
@@ -154,6 +166,31 @@ KNOWN_KEYS = {
     "camera_size", "camera_matrix", "camera_distortion", "projector_size", "projector_matrix",
     "projector_distortion", "R", "T", "color_mixing", *RMS_KEYS,
 }  # fmt: skip
+
+
+# Bounds no real lens reaches: focal lengths from a 175-degree fisheye (0.02 x the image width) to a 0.1-degree
+# telescope (1000 x); pixels at most 5:1; the principal point within one image size of the image; distortion
+# coefficients beyond these fold or tear the image inside its own frame.
+FOCAL_RANGE = (0.02, 1000.0)
+MAX_ASPECT = 5.0
+MAX_RADIAL = 1000.0
+MAX_TANGENTIAL = 1.0
+
+
+def _implausible_intrinsics(K: np.ndarray, size: tuple[int, int]) -> str:
+    """What makes K impossible for an image of `size` (w, h) pixels, or "" for a plausible one."""
+    w, h = size
+    fx, fy = K[0, 0], K[1, 1]
+    lo, hi = FOCAL_RANGE[0] * max(w, h), FOCAL_RANGE[1] * max(w, h)
+    if not (lo <= fx <= hi and lo <= fy <= hi):
+        return f"has focal lengths fx={fx:g}, fy={fy:g} px outside {lo:g}..{hi:g} for a {w}x{h} image"
+    if max(fx / fy, fy / fx) > MAX_ASPECT:
+        return f"has fx={fx:g} and fy={fy:g}: pixels more than {MAX_ASPECT:g}:1 are not a real sensor"
+    if abs(K[0, 1]) > fx:
+        return f"has a skew K[0,1]={K[0, 1]:g} larger than fx"
+    if not (-w <= K[0, 2] <= 2 * w and -h <= K[1, 2] <= 2 * h):
+        return f"has its principal point ({K[0, 2]:g}, {K[1, 2]:g}) more than an image size outside the {w}x{h} image"
+    return ""
 
 
 def _extra(doc: dict) -> dict[str, np.ndarray | float]:

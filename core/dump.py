@@ -11,7 +11,6 @@ it takes out of `frames/` goes to `orphans/`, and the old index stays as `dump.y
 from __future__ import annotations
 
 import errno
-import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,9 +20,11 @@ import numpy as np
 import yaml
 
 from core.calibration import Calibration
+from core.depth_range_field import depth_range_field
 from core.errors import InputError
 from core.imageio import encode_png, read_rgb
 from core.mosaic import mosaic_name
+from core.paths import resolves_inside
 from core.pattern_export import read_patterns, read_patterns_meta, write_patterns
 from core.patterns import PatternSet
 from core.yamlfile import parse_yaml
@@ -119,12 +120,18 @@ class DumpWriter:
         self._index.flush()
         self.count = 0
         self._last_ts: int | None = None
+        self._last_id: int | None = None
 
     def add(self, image: np.ndarray, pattern: int, frame_id: int, timestamp_ns: int) -> FrameRecord:
         if not 0 <= pattern < self.n_patterns:
             raise ValueError(f"pattern index {pattern} outside 0..{self.n_patterns - 1}")
         if self._last_ts is not None and timestamp_ns < self._last_ts:
             raise ValueError(f"timestamp {timestamp_ns} ns goes back in time (last {self._last_ts} ns)")
+        # the reader refuses what the writer would otherwise write: ids that do not increase, values past int64
+        if self._last_id is not None and frame_id <= self._last_id:
+            raise ValueError(f"frame id {frame_id} does not increase (last {self._last_id})")
+        if not (0 <= frame_id <= MAX_ID and 0 <= timestamp_ns <= MAX_ID):
+            raise ValueError(f"frame id {frame_id} or timestamp {timestamp_ns} ns outside 0..2^63 - 1")
         if (image.ndim == 2) != (self.mosaic is not None):
             what = f"mosaic {self.mosaic}" if self.mosaic else "no mosaic"
             raise DumpWriteError(
@@ -155,6 +162,7 @@ class DumpWriter:
             ) from None
         self.count += 1
         self._last_ts = record.timestamp_ns
+        self._last_id = record.frame_id
         return record
 
     def close(self) -> None:
@@ -217,7 +225,8 @@ class Dump:
 
     def load_frame(self, i: int) -> np.ndarray:
         """Frame i: RGB (H, W, 3), or the raw Bayer frame (H, W) in a dump with a mosaic."""
-        return read_rgb(self.folder / self.frames[i].file, grey=self.mosaic is not None)
+        grey = self.mosaic is not None
+        return read_rgb(self.folder / self.frames[i].file, grey=grey, colour=not grey)
 
 
 def read_dump(folder: str | os.PathLike) -> Dump:
@@ -245,10 +254,7 @@ def read_dump(folder: str | os.PathLike) -> Dump:
     _inside(folder, meta["patterns"], "patterns")
     if "calibration" in meta:
         _inside(folder, meta["calibration"], "calibration")
-    rng = meta.get("depth_range_mm")
-    finite = isinstance(rng, list) and all(isinstance(v, int | float) and math.isfinite(v) for v in rng)
-    if rng is not None and not (finite and len(rng) == 2 and 0 < rng[0] < rng[1]):
-        raise InputError(f"{path}: field 'depth_range_mm' must be [near, far] with finite 0 < near < far")
+    depth_range_field(meta.get("depth_range_mm"), f"{path}: field 'depth_range_mm'")
     if meta.get("mosaic") is not None:
         if not isinstance(meta["mosaic"], str):
             raise InputError(f"{path}: field 'mosaic' must be one of RGGB, GRBG, GBRG, BGGR, found {meta['mosaic']!r}")
@@ -258,15 +264,22 @@ def read_dump(folder: str | os.PathLike) -> Dump:
         raise InputError(f"{path}: field 'frames' must be a list")
     frames: list[FrameRecord] = []
     for i, entry in enumerate(raw):
-        try:
-            rec = FrameRecord(
-                str(entry["file"]), int(entry["pattern"]), int(entry["frame_id"]), int(entry["timestamp_ns"])
-            )
-        except (TypeError, KeyError, ValueError, OverflowError):  # (int() of .inf overflows)
-            raise InputError(f"{path}: frames[{i}] needs file, pattern, frame_id and timestamp_ns") from None
+        if not isinstance(entry, dict) or not all(k in entry for k in ("file", "pattern", "frame_id", "timestamp_ns")):
+            raise InputError(f"{path}: frames[{i}] needs file, pattern, frame_id and timestamp_ns")
+        rec = FrameRecord(
+            str(entry["file"]),
+            _whole(entry, "pattern", MAX_PATTERN, path, i),
+            _whole(entry, "frame_id", MAX_ID, path, i),
+            _whole(entry, "timestamp_ns", MAX_ID, path, i),
+        )
         _inside(folder, rec.file, f"frames[{i}].file")
-        if rec.pattern < 0:
-            raise InputError(f"{path}: frames[{i}].pattern is negative")
+        if frames and rec.frame_id <= frames[-1].frame_id:
+            raise InputError(
+                f"{path}: frames[{i}].frame_id {rec.frame_id} does not increase (frames[{i - 1}] has "
+                f"{frames[-1].frame_id}): the index is out of capture order"
+            )
+        if frames and rec.timestamp_ns < frames[-1].timestamp_ns:
+            raise InputError(f"{path}: frames[{i}].timestamp_ns goes back in time (before frames[{i - 1}]'s)")
         frames.append(rec)
     # A frame whose file is missing ends the readable part only if nothing after it exists.
     tail: list[FrameRecord] = []
@@ -277,6 +290,20 @@ def read_dump(folder: str | os.PathLike) -> Dump:
             raise InputError(f"{folder / rec.file}: frame file listed in {path} (frames[{i}]) is missing")
     meta["frames"] = None
     return Dump(folder, meta, frames, tail)
+
+
+MAX_ID = (1 << 63) - 1  # frame ids and timestamps are int64 everywhere downstream
+MAX_PATTERN = 1 << 16  # a pattern index: far more patterns than any scheme projects
+
+
+def _whole(entry: dict, key: str, top: int, path: Path, i: int) -> int:
+    """entry[key] as an int in 0..top: a YAML integer, not a float (which int() would truncate) nor a bool."""
+    v = entry[key]
+    if not isinstance(v, int) or isinstance(v, bool):
+        raise InputError(f"{path}: frames[{i}].{key} must be a whole number, found {v!r}")
+    if not 0 <= v <= top:
+        raise InputError(f"{path}: frames[{i}].{key} = {v} is out of range (0 to {top})")
+    return v
 
 
 def _index_line(r: FrameRecord) -> str:
@@ -291,17 +318,9 @@ def _inside(folder: Path, rel: object, field_name: str) -> Path:
     p = Path(rel)
     if p.is_absolute() or ".." in p.parts:
         raise InputError(f"{folder / INDEX}: field '{field_name}' = {rel!r} leaves the dump folder")
-    if not _resolves_inside(folder, folder / p):
+    if not resolves_inside(folder, folder / p):
         raise InputError(f"{folder / INDEX}: field '{field_name}' = {rel!r} is a symlink that leaves the dump folder")
     return folder / p
-
-
-def _resolves_inside(folder: Path, path: Path) -> bool:
-    """Whether path, its symlinks resolved, lies inside folder (itself resolved)."""
-    try:
-        return path.resolve().is_relative_to(folder.resolve())
-    except (OSError, RuntimeError):  # a symlink loop
-        return False
 
 
 def _write_file(path: Path, data: bytes) -> None:
@@ -356,7 +375,7 @@ def repair_dump(folder: str | os.PathLike) -> RepairReport:
     path = folder / INDEX
     frames_dir = folder / "frames"
     for p in (path, frames_dir):
-        if p.is_symlink() or not _resolves_inside(folder, p):
+        if p.is_symlink() or not resolves_inside(folder, p):
             raise InputError(f"{p}: is a symlink; --repair changes nothing through a symlink")
     listed = list(dump.frames)
     recovered = 0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import resource
 from pathlib import Path
 
 import cv2
@@ -26,8 +27,9 @@ def write_rgb(path: str | os.PathLike, image: np.ndarray) -> None:
         raise InputError(f"{path}: cannot write image (check the folder exists and is writable)")
 
 
-def read_rgb(path: str | os.PathLike, *, grey: bool = False) -> np.ndarray:
-    """Read an image file as RGB (H, W, 3) — or (H, W) with grey=True — keeping 8 or 16 bits."""
+def read_rgb(path: str | os.PathLike, *, grey: bool = False, colour: bool = False) -> np.ndarray:
+    """Read an image file as RGB (H, W, 3) — or (H, W) with grey=True — keeping 8 or 16 bits. With colour=True a
+    single-channel file is refused rather than repeated into three equal channels (a camera frame)."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: image file not found")
@@ -43,6 +45,11 @@ def read_rgb(path: str | os.PathLike, *, grey: bool = False) -> np.ndarray:
             raise InputError(f"{path}: expected a single-channel image, found {img.shape[2]} channels")
         return img
     if img.ndim == 2:
+        if colour:
+            raise InputError(
+                f"{path}: a single-channel image where a colour frame is expected (a dump of raw Bayer frames names "
+                "its mosaic in dump.yaml)"
+            )
         img = np.repeat(img[:, :, None], 3, axis=2)
     elif img.shape[2] == 4:
         img = img[:, :, :3]
@@ -79,11 +86,20 @@ def _check_png_size(path: Path) -> None:
 
 
 def _free_memory_bytes() -> int | None:
-    """Memory the process could still take: free physical memory (None where the system does not say)."""
+    """Memory the process could still take: free physical memory, or less under an address-space limit
+    (`ulimit -v`); None where the system says neither."""
+    free = None
     try:
-        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+        page = os.sysconf("SC_PAGE_SIZE")
+        free = os.sysconf("SC_AVPHYS_PAGES") * page
+        limit = resource.getrlimit(resource.RLIMIT_AS)[0]
+        if limit != resource.RLIM_INFINITY:
+            with open("/proc/self/statm") as f:  # (first field: the address space in use, in pages)
+                used = int(f.read().split()[0]) * page
+            free = min(free, max(limit - used, 0))
     except (AttributeError, ValueError, OSError):
-        return None
+        pass
+    return free
 
 
 def write_float_tiff(path: str | os.PathLike, data: np.ndarray) -> None:

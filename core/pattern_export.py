@@ -63,6 +63,9 @@ def read_patterns_meta(folder: str | os.PathLike) -> dict:
     return meta
 
 
+SHOTS = {"one-shot": 1, "two-shot": 2}  # images per export of the stripe schemes
+
+
 def _is_int(value: object) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
 
@@ -114,6 +117,19 @@ def _check_stripe_fields(meta: dict, path: Path) -> None:
         window_table(seq, k)
     except ValueError:
         raise InputError(f"{path}: field 'sequence' repeats a window of k={k} stripes: it cannot be decoded") from None
+    if "period" in meta and meta["period"] != len(seq):
+        raise InputError(
+            f"{path}: field 'period' is {meta['period']!r} but the sequence has {len(seq)} stripes (the period is the "
+            "sequence's length)"
+        )
+    shots = SHOTS[scheme]
+    if len(meta["images"]) != shots:
+        raise InputError(f"{path}: field 'images' lists {len(meta['images'])} image(s); a {scheme} export has {shots}")
+    if k * width > meta["size"][0]:
+        raise InputError(
+            f"{path}: field 'stripe_width' {width} is too wide: one window of k={k} stripes needs {k * width} "
+            f"projector columns, the patterns have {meta['size'][0]}"
+        )
 
 
 def read_patterns(folder: str | os.PathLike) -> PatternSet:

@@ -82,6 +82,7 @@ def run(args: argparse.Namespace) -> int:
 def run_headless(session: Session, args: argparse.Namespace, label: str = "live") -> int:
     frames = args.frames or 300
     out = Path(args.out) if args.out else Path(time.strftime("live-%Y%m%d-%H%M%S"))
+    session.check_outputs(out, getattr(args, "record", None))  # before the decoder compiles and the devices open
     # the decoder first: an error (or Ctrl-C) while it compiles leaves no empty dump behind
     processor = session.processor()
     recorder = open_recorder(session, args.record, args.png_level) if getattr(args, "record", None) else None

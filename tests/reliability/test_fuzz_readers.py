@@ -5,16 +5,25 @@ Mutations start from real, valid files so the fuzzer reaches deep into the parse
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from app.config import DEFAULT_CONFIG as BUNDLED_CONFIG
+from app.config import load_config
+from calibration.board import load_board
+from calibration.capture import read_levels, write_levels
 from core.calibration import Calibration
 from core.dump import DumpWriter, read_dump
 from core.errors import InputError
 from core.pattern_export import read_patterns_meta, write_patterns
 from core.patterns import two_shot_patterns
+from drivers.sim.scene import SCENES_DIR, load_scene
+
+SCENE_PRESET = SCENES_DIR / "face.yaml"
 
 FUZZ = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 
@@ -57,7 +66,13 @@ def check_dump_reader(folder, index_bytes: bytes, target) -> None:
     except InputError as exc:
         assert "\n" not in str(exc).strip()
         return
-    # Whatever was accepted stays inside the folder and is loadable.
+    # Whatever was accepted obeys the schema: ids increase, time never goes back, every value an int64 ...
+    ids = [r.frame_id for r in d.frames]
+    stamps = [r.timestamp_ns for r in d.frames]
+    assert all(b > a for a, b in itertools.pairwise(ids))
+    assert all(b >= a for a, b in itertools.pairwise(stamps))
+    assert all(0 <= v < 2**63 for v in ids + stamps)
+    # ... and stays inside the folder and is loadable.
     for i, rec in enumerate(d.frames):
         assert (folder / rec.file).resolve().is_relative_to(folder.resolve())
         if i < 2:
@@ -106,6 +121,9 @@ def test_fuzz_calibration_reader(valid_calibration, tmp_path, e):
         assert "c.yaml" in str(exc) and "\n" not in str(exc).strip()
         return
     assert cal.camera_matrix.shape == (3, 3) and np.isfinite(cal.R).all()
+    for K in (cal.camera_matrix, cal.projector_matrix):  # what was accepted is a plausible pinhole
+        assert K[1, 0] == K[2, 0] == K[2, 1] == 0 and K[0, 0] > 0 and K[1, 1] > 0
+    assert np.abs(cal.camera_distortion).max() <= 1000
 
 
 @pytest.fixture(scope="module")
@@ -125,3 +143,71 @@ def test_fuzz_patterns_yaml_reader(valid_patterns_yaml, tmp_path, e):
         assert "patterns.yaml" in str(exc)
         return
     assert meta["scheme"] in ("one-shot", "two-shot", "graycode")
+
+
+BOARD_YAML = b"type: charuco\nrows: 5\ncols: 7\nsquare_mm: 30\nmarker_mm: 22\ndictionary: DICT_5X5_100\n"
+
+
+@FUZZ
+@given(e=st.one_of(edits, token_edits))
+def test_fuzz_board_reader(tmp_path, e):
+    path = tmp_path / "board.yaml"
+    path.write_bytes(
+        mutate(b"type: charuco\nrows: 5\ncols: 7\nsquare_mm: 30\nmarker_mm: 22\ndictionary: DICT_5X5_100\n", e)
+    )
+    try:
+        board = load_board(path)
+    except InputError as exc:
+        assert "board.yaml" in str(exc) and "\n" not in str(exc).strip()
+        return
+    assert 2 <= board.rows <= 200 and 2 <= board.cols <= 200 and 0 < board.square_mm < 10000
+
+
+@pytest.fixture(scope="module")
+def levels_folder(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("fzl") / "levels"
+    write_levels(folder, [(c, v, np.full((4, 6, 3), v, np.uint8)) for c in "RGB" for v in (0, 128, 255)], 2.2)
+    return folder
+
+
+@FUZZ
+@given(e=st.one_of(edits, token_edits))
+def test_fuzz_levels_reader(levels_folder, e):
+    path = levels_folder / "levels.yaml"
+    original = path.read_bytes()
+    path.write_bytes(mutate(original, e))
+    try:
+        levels = read_levels(levels_folder)
+    except InputError as exc:
+        assert "levels.yaml" in str(exc) or str(levels_folder) in str(exc)
+        assert "\n" not in str(exc).strip()
+        return
+    finally:
+        path.write_bytes(original)
+    assert all(ch in "RGB" and 0 <= level <= 255 and img.ndim == 3 for ch, level, img in levels)
+
+
+@FUZZ
+@given(e=st.one_of(edits, token_edits))
+def test_fuzz_config_reader(tmp_path, e):
+    path = tmp_path / "cfg.yaml"
+    path.write_bytes(mutate(BUNDLED_CONFIG.read_bytes(), e))
+    try:
+        cfg = load_config(path)
+    except InputError as exc:
+        assert "cfg.yaml" in str(exc) and "\n" not in str(exc).strip()
+        return
+    assert isinstance(cfg.data, dict)
+
+
+@FUZZ
+@given(e=st.one_of(edits, token_edits))
+def test_fuzz_scene_preset_reader(tmp_path, e):
+    path = tmp_path / "scene.yaml"
+    path.write_bytes(mutate(SCENE_PRESET.read_bytes(), e))
+    try:
+        scene = load_scene(path)
+    except InputError as exc:
+        assert "scene.yaml" in str(exc) and "\n" not in str(exc).strip()
+        return
+    assert scene.shapes

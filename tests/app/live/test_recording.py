@@ -230,24 +230,55 @@ def test_slscan_dump_frames_n_records_n_frames_past_refused_ones(tmp_path, capsy
 
 @pytest.fixture
 def small_disk(tmp_path):
-    """A 3 MB tmpfs (a disk that fills within a few frames); skipped where mounting is not allowed."""
-    mnt = tmp_path / "disk"
-    mnt.mkdir()
-    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=3m", "tmpfs", str(mnt)], capture_output=True)
-    if r.returncode != 0:
-        pytest.skip(f"cannot mount a tmpfs here: {r.stderr.decode().strip()}")
+    """mount(size_mb): a tmpfs of that size (a disk that fills within a few seconds); skipped where mounting is
+    not allowed."""
+    mounted = []
+
+    def mount(size_mb: int):
+        mnt = tmp_path / f"disk{len(mounted)}"
+        mnt.mkdir()
+        r = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size_mb}m", "tmpfs", str(mnt)], capture_output=True)
+        if r.returncode != 0:
+            pytest.skip(f"cannot mount a tmpfs here: {r.stderr.decode().strip()}")
+        mounted.append(mnt)
+        return mnt
+
     try:
-        yield mnt
+        yield mount
     finally:
-        subprocess.run(["umount", "-l", str(mnt)], capture_output=True)
+        for mnt in mounted:
+            subprocess.run(["umount", "-l", str(mnt)], capture_output=True)
 
 
 def test_live_recording_into_a_full_disk_is_no_success(tmp_path, capsys, small_disk):
+    # room to start (3 s of 320x240 frames at 60 Hz: 41 MB), not for the whole recording (5 s)
+    disk = small_disk(48)
     cfg = small_config(tmp_path)
-    out, rec = str(tmp_path / "out"), str(small_disk / "rec")
-    code = main(["live", "--headless", "--config", cfg, "--frames", "60", "--out", out, "--record", rec])
+    out, rec = str(tmp_path / "out"), str(disk / "rec")
+    code = main(["live", "--headless", "--config", cfg, "--frames", "300", "--out", out, "--record", rec])
     err = capsys.readouterr().err
     assert code == 2, err
     assert "NOT recorded" in err and "Traceback" not in err
-    dump = read_dump(small_disk / "rec")  # what fitted is kept, readable
-    assert 1 <= len(dump.frames) < 60
+    dump = read_dump(disk / "rec")  # what fitted is kept, readable
+    assert 150 <= len(dump.frames) < 300
+
+
+def test_a_recording_without_room_to_start_is_refused_before_the_session(tmp_path, capsys, small_disk):
+    disk = small_disk(3)
+    cfg = small_config(tmp_path)
+    out, rec = tmp_path / "out", disk / "rec"
+    code = main(["live", "--headless", "--config", cfg, "--frames", "60", "--out", str(out), "--record", str(rec)])
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert code == 2 and len(err) == 1, err
+    assert str(rec) in err[0] and "MB needed to start" in err[0]
+    assert "frames in" not in captured.out  # no session ran
+    assert not rec.exists() and not out.exists()
+
+
+@pytest.mark.parametrize("target", ["/dev/full", "/dev/null"])
+def test_a_scan_folder_that_is_a_device_is_refused_before_the_session(tmp_path, capsys, target):
+    code = main(["live", "--headless", "--config", small_config(tmp_path), "--frames", "10", "--out", target])
+    captured = capsys.readouterr()
+    assert code == 2 and captured.err.strip() == f"slscan live: error: {target}: exists and is not a folder"
+    assert "frames in" not in captured.out
