@@ -69,6 +69,7 @@ class FrameRecord:
     pattern: int  # index into the pattern set's images
     frame_id: int
     timestamp_ns: int
+    recovered: str = ""  # RECOVERED_BY_CONTENT: --repair told the tag and timestamp from the frame's content
 
 
 class DumpWriter:
@@ -271,6 +272,7 @@ def read_dump(folder: str | os.PathLike) -> Dump:
             _whole(entry, "pattern", MAX_PATTERN, path, i),
             _whole(entry, "frame_id", MAX_ID, path, i),
             _whole(entry, "timestamp_ns", MAX_ID, path, i),
+            RECOVERED_BY_CONTENT if entry.get("recovered") == RECOVERED_BY_CONTENT else "",
         )
         _inside(folder, rec.file, f"frames[{i}].file")
         if frames and rec.frame_id <= frames[-1].frame_id:
@@ -292,6 +294,7 @@ def read_dump(folder: str | os.PathLike) -> Dump:
     return Dump(folder, meta, frames, tail)
 
 
+RECOVERED_BY_CONTENT = "content"
 MAX_ID = (1 << 63) - 1  # frame ids and timestamps are int64 everywhere downstream
 MAX_PATTERN = 1 << 16  # a pattern index: far more patterns than any scheme projects
 
@@ -308,7 +311,8 @@ def _whole(entry: dict, key: str, top: int, path: Path, i: int) -> int:
 
 def _index_line(r: FrameRecord) -> str:
     """A frame's one-line entry under `frames:` (the writer appends it, repair writes the list whole)."""
-    return f"- {{file: {r.file}, pattern: {r.pattern}, frame_id: {r.frame_id}, timestamp_ns: {r.timestamp_ns}}}\n"
+    mark = f", recovered: {r.recovered}" if r.recovered else ""
+    return f"- {{file: {r.file}, pattern: {r.pattern}, frame_id: {r.frame_id}, timestamp_ns: {r.timestamp_ns}{mark}}}\n"
 
 
 def _inside(folder: Path, rel: object, field_name: str) -> Path:
@@ -349,10 +353,12 @@ class RepairReport:
     recovered: int  # frames whose entry was written but not yet their rename: renamed into place, kept
     orphaned: int  # files taken out of frames/ into orphans/: partial frames, frames with no entry
     backup: str  # the old index, kept beside the new one
+    reindexed: int = 0  # of the recovered: a complete frame with no entry, its tag told from its content
 
     def summary(self) -> str:
         return (
-            f"{self.frames} frames readable ({self.recovered} recovered); dropped {self.dropped_entries} broken "
+            f"{self.frames} frames readable ({self.recovered} recovered, {self.reindexed} of them re-indexed from "
+            f"their content); dropped {self.dropped_entries} broken "
             f"index entr{'y' if self.dropped_entries == 1 else 'ies'}; {self.orphaned} file(s) moved to "
             f"{ORPHANS}/; the old index kept as {self.backup}"
         )
@@ -390,6 +396,16 @@ def repair_dump(folder: str | os.PathLike) -> RepairReport:
         os.replace(tmp, final)
         listed.append(rec)
         recovered += 1
+    # a kill after the frame's bytes and before its entry leaves it complete under its temporary name with no
+    # entry: re-indexed when its content says which pattern it saw and that pattern is the one due next
+    reindexed = 0
+    if not dump.tail:
+        unindexed = frames_dir / f"{len(listed):06d}.tmp.png"
+        rec = _recover_by_content(dump, listed, unindexed)
+        if rec is not None:
+            os.replace(unindexed, folder / rec.file)
+            listed.append(rec)
+            reindexed = 1
     header = {k: v for k, v in dump.meta.items() if k != "frames"}
     lines = [_index_line(r) for r in listed]
     backup = _free_name(folder, INDEX + ".bak")
@@ -407,7 +423,52 @@ def repair_dump(folder: str | os.PathLike) -> RepairReport:
         orphans.mkdir(exist_ok=True)
         for p in strays:
             os.replace(p, _free_name(orphans, p.name))  # (a symlink moves as the link itself)
-    return RepairReport(len(listed), dump.dropped_tail - recovered, recovered, len(strays), backup.name)
+    return RepairReport(
+        len(listed), dump.dropped_tail - recovered, recovered + reindexed, len(strays), backup.name, reindexed
+    )
+
+
+MIN_CONTENT_MATCH = 0.5  # the normalised correlation a re-indexed frame must reach with its pattern's last frame
+
+
+def _recover_by_content(dump: Dump, listed: list[FrameRecord], path: Path) -> FrameRecord | None:
+    """The entry of a complete frame that has none, from its content: it is the frame written after the last
+    listed one, so it saw the pattern due next in the cycle (pattern + 1 mod the pattern count) if its content
+    agrees: against the newest listed frame of each pattern (their mean removed), it must correlate best, and
+    by at least MIN_CONTENT_MATCH, with that pattern's. Its frame id is the next one and its timestamp one median
+    frame interval later, and the entry says it was recovered. None when any of this cannot be told."""
+    if not listed or path.is_symlink() or not path.is_file() or not _complete_png(path):
+        return None
+    n = len(dump.patterns_meta()["images"])
+    due = (listed[-1].pattern + 1) % n
+    newest: dict[int, int] = {}
+    for i, r in enumerate(listed):
+        newest[r.pattern] = i
+    try:
+        grey = dump.mosaic is not None
+        image = read_rgb(path, grey=grey, colour=not grey).astype(np.float32)
+        refs = {p: dump.load_frame(i).astype(np.float32) for p, i in newest.items()}
+    except InputError:
+        return None
+    if (n > 1 and len(refs) < 2) or any(r.shape != image.shape for r in refs.values()):
+        return None
+    if n > 1:
+        mean = sum(refs.values()) / len(refs)
+        x = (image - mean).ravel()
+
+        def match(ref: np.ndarray) -> float:
+            y = (ref - mean).ravel()
+            return float(x @ y / (np.linalg.norm(x) * np.linalg.norm(y) + 1e-9))
+
+        scores = {p: match(r) for p, r in refs.items()}
+        best = max(scores, key=scores.get)
+        if best != due or scores[best] < MIN_CONTENT_MATCH:
+            return None
+    stamps = [r.timestamp_ns for r in listed]
+    step = int(np.median(np.diff(stamps))) if len(stamps) > 1 else 0
+    last = listed[-1]
+    name = f"frames/{path.name.removesuffix('.tmp.png')}.png"
+    return FrameRecord(name, due, last.frame_id + 1, last.timestamp_ns + step, recovered=RECOVERED_BY_CONTENT)
 
 
 def _complete_png(path: Path) -> bool:

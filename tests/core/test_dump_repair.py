@@ -106,3 +106,57 @@ def test_a_frame_file_that_is_a_symlink_out_of_the_dump_is_refused(tmp_path):
     with pytest.raises(InputError, match="symlink"):
         repair_dump(d)
     assert outside.is_file()
+
+
+def striped_frames(n: int) -> list[np.ndarray]:
+    """n 64x48 frames of a two-shot scene: stripes in G and B inverted from frame to frame, over a fixed texture,
+    with a little noise (what a camera films of a still object)."""
+    rng = np.random.default_rng(1)
+    texture = rng.integers(40, 120, (48, 64, 3)).astype(np.int16)
+    stripes = np.zeros((48, 64, 3), np.int16)
+    stripes[:, (np.arange(64) // 3) % 2 == 0, 1] = 100
+    stripes[:, (np.arange(64) // 5) % 2 == 0, 2] = 100
+    frames = []
+    for i in range(n):
+        lit = stripes if i % 2 == 0 else 100 * (stripes == 0) * np.array([0, 1, 1])
+        frames.append(np.clip(texture + lit + rng.integers(-3, 4, texture.shape), 0, 255).astype(np.uint8))
+    return frames
+
+
+def write_killed_before_the_entry(folder, frames: list[np.ndarray], last: np.ndarray) -> None:
+    """A dump of frames whose writer was killed with `last` complete under its temporary name, its entry unwritten."""
+    K = [[500, 0, 31.5], [0, 500, 23.5], [0, 0, 1]]
+    cal = Calibration((64, 48), K, [0] * 5, (128, 96), K, [0] * 5, np.eye(3), [-100, 0, 0])
+    with DumpWriter(folder, two_shot_patterns((128, 96)), cal) as w:
+        for i, f in enumerate([*frames, last]):
+            w.add(f, pattern=i % 2, frame_id=10 + i, timestamp_ns=1000 * i)
+    lines = (folder / INDEX).read_text().splitlines(keepends=True)
+    (folder / INDEX).write_text("".join(lines[:-1]))  # the entry of the last frame never written
+    n = len(frames)
+    os.replace(folder / f"frames/{n:06d}.png", folder / f"frames/{n:06d}.tmp.png")
+
+
+def test_a_complete_frame_without_its_entry_is_reindexed_from_its_content(tmp_path):
+    d = tmp_path / "d"
+    frames = striped_frames(6)
+    write_killed_before_the_entry(d, frames[:5], frames[5])
+    assert len(read_dump(d).frames) == 5
+    report = repair_dump(d)
+    assert report.recovered == 1 and report.reindexed == 1 and report.orphaned == 0
+    dump = read_dump(d)
+    assert _frames(d) == [(10 + i, i % 2, 1000 * i) for i in range(6)]  # pattern 1 was due, and it saw pattern 1
+    assert dump.frames[5].recovered == "content" and not dump.frames[4].recovered
+    assert np.array_equal(dump.load_frame(5), frames[5])
+    repair_dump(d)  # the mark survives a second repair
+    assert read_dump(d).frames[5].recovered == "content"
+
+
+@pytest.mark.parametrize("content", ["wrong pattern", "noise"])
+def test_a_frame_whose_content_does_not_tell_its_pattern_goes_to_orphans(tmp_path, content):
+    d = tmp_path / "d"
+    frames = striped_frames(6)
+    last = frames[4] if content == "wrong pattern" else np.random.default_rng(2).integers(0, 256, (48, 64, 3), np.uint8)
+    write_killed_before_the_entry(d, frames[:5], last)
+    report = repair_dump(d)
+    assert report.reindexed == 0 and report.orphaned == 1 and report.frames == 5
+    assert (d / ORPHANS / "000005.tmp.png").is_file()
