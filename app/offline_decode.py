@@ -98,7 +98,7 @@ def output_names(n: int, has_depth: bool, png16: bool, preview: bool) -> list[st
 
 
 class SetDecoder:
-    """A dump's reader and its FrameSetDecoder, built once per process (calibration tables, numba kernels)."""
+    """A dump's reader and its FrameSetDecoder, built once per process (calibration tables, compiled kernels)."""
 
     def __init__(self, settings: DecodeSettings) -> None:
         quiet_opencv()

@@ -2,7 +2,7 @@
 the same bytes as the local path).
 
 The worker reads the frames from the dump folder itself (no frames pass through the scheduler) and builds the
-dump's decoder once per worker thread (calibration tables, numba kernels), kept across tasks. Files are written in a
+dump's decoder once per worker thread (calibration tables, compiled kernels), kept across tasks. Files are written in a
 partial folder of the task's own and renamed into place one by one, then the chunk's marker (manifest.py): a kill
 at any point leaves no half-written file under a final name and no marker for an incomplete chunk.
 """
