@@ -13,6 +13,7 @@ from core.errors import InputError
 
 DEFAULT_CONNECT_TIMEOUT_S = 10.0
 EXTRA = "pip install 'slscan[cluster]'"
+MALLOC_TRIM_KEY = "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_"
 _ADDRESS = re.compile(r"^(tcp|tls|ucx|inproc)://[^\s/]+$")
 
 
@@ -44,16 +45,21 @@ def open_client(address: str, timeout_s: float = DEFAULT_CONNECT_TIMEOUT_S) -> I
     """A distributed.Client on the scheduler at address, or on a LocalCluster of N single-threaded worker processes
     (closed on exit). A scheduler that does not answer within timeout_s is an InputError, nothing written."""
     distributed = require_distributed()
+    import dask
+
     kind, value = parse_address(address)
     if kind == "local":
-        # one thread per process: the decoder holds the GIL for its Python parts, processes scale
-        cluster = distributed.LocalCluster(
-            n_workers=int(value),
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=None,
-            silence_logs=logging.ERROR,
-        )
+        # One thread per process: the decoder holds the GIL for its Python parts, processes scale. Dask's nannies set
+        # MALLOC_TRIM_THRESHOLD_ in their workers, which turns off glibc's adaptive mmap threshold: every frame-sized
+        # array is then mmap'd and zero-filled afresh, +50-80 % CPU a set (docs/performance.md); left unset here.
+        with dask.config.set({MALLOC_TRIM_KEY: None}):
+            cluster = distributed.LocalCluster(
+                n_workers=int(value),
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                silence_logs=logging.ERROR,
+            )
         try:
             with distributed.Client(cluster, timeout=timeout_s) as client:
                 yield client
