@@ -138,6 +138,14 @@ def _warnings(results: list[ChunkResult]) -> None:
     problem = next((r.depth_range_problem for r in results if r.depth_range_problem), None)
     if problem is not None:
         print(f"slscan decode: warning: {problem}", file=sys.stderr)
+    slow = sorted({r.worker for r in results if r.malloc_trim is not None})
+    if slow:
+        print(
+            f"slscan decode: warning: {len(slow)} worker(s) run with MALLOC_TRIM_THRESHOLD_ set (Dask's nanny "
+            "default), which costs +50-80 % CPU a set: unset it in the workers' Dask config (README, \"Decoding on a "
+            'cluster")',
+            file=sys.stderr,
+        )
     empty = sum(r.empty for r in results)
     if empty:
         reason = next(r.empty_reason for r in results if r.empty)

@@ -41,6 +41,7 @@ class ChunkResult:
     setup_s: float  # of wall_s: building the decoder (0 when the worker had it)
     empty_reason: str
     depth_range_problem: str | None
+    malloc_trim: str | None  # the worker's MALLOC_TRIM_THRESHOLD_ (a Dask nanny sets it; it slows the decoder)
 
 
 def worker_id() -> str:
@@ -110,4 +111,5 @@ def decode_chunk(key: str, settings: DecodeSettings, chunk: Chunk, out: str, sub
         setup_s,
         dec.empty_reason(),
         dec.depth_range_problem,
+        os.environ.get("MALLOC_TRIM_THRESHOLD_"),
     )

@@ -22,6 +22,7 @@ import pytest
 
 distributed = pytest.importorskip("distributed", reason="slscan[cluster] is not installed")
 
+from app.cluster.client import MALLOC_TRIM_KEY  # noqa: E402
 from app.dump import DumpWriter  # noqa: E402
 from app.imageio import read_float_tiff  # noqa: E402
 from app.patterns import two_shot_patterns  # noqa: E402
@@ -32,13 +33,14 @@ RUN_FILES = {"decode-run.yaml", ".decode-run"}  # what a cluster run adds to the
 
 @pytest.fixture(scope="module")
 def cluster():
-    """A LocalCluster of 2 single-threaded worker processes and a client on it."""
-    with (
-        distributed.LocalCluster(
+    """A LocalCluster of 2 single-threaded worker processes and a client on it, as `--scheduler local:2` makes it."""
+    import dask
+
+    with dask.config.set({MALLOC_TRIM_KEY: None}):
+        lc = distributed.LocalCluster(
             n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=50
-        ) as lc,
-        distributed.Client(lc) as client,
-    ):
+        )
+    with lc, distributed.Client(lc) as client:
         # the workers run this checkout's code, not an installed slscan
         where = client.run(lambda: __import__("app").__file__)
         assert all(Path(f).resolve().is_relative_to(ROOT) for f in where.values()), where
@@ -109,6 +111,7 @@ def test_outputs_are_the_local_paths_bytes_for_several_dumps(cluster, make_dump,
     assert "decoded 8 of 8 two-shot frame set(s) from 9 frames" in r.stdout
     assert "13 frame set(s) decoded in 5 chunk(s) on 2 worker(s)" in r.stdout and "0 failed" in r.stdout
     assert r.stdout.count("  worker ") == 2, r.stdout  # throughput per worker
+    assert r.stderr == "", r.stderr  # (no warning: the workers run without Dask's MALLOC_TRIM_THRESHOLD_)
     assert_same_files(local_out("a", 9), out / "a")
     assert_same_files(local_out("b", 6), out / "b")
     depth = read_float_tiff(out / "a" / "depth_000007.tiff")  # the last chunk's last set, against the truth
