@@ -12,7 +12,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from app.decode.pipeline import DepthRangeWarning, EmptyResultWarning, FrameSetDecoder
+from app.decode.pipeline import DecodedSet, DepthRangeWarning, EmptyResultWarning, FrameSetDecoder
 from app.export import depth_preview, stripe_colours, write_depth_png16, write_depth_tiff, write_ply, write_png
 from app.framesets import FrameIndexSet, FrameSetStats, group_frame_sets
 from core.calibration import Calibration
@@ -114,6 +114,12 @@ class SetDecoder:
     def decode_set(self, n: int, fs: FrameIndexSet, out: Path, load: Callable[[int], np.ndarray] | None = None) -> int:
         """Decode set n into out/ (output_names); returns its count of valid pixels. load: frame index -> image
         (a caller's cache; default: read the dump's file)."""
+        return int(self.decode_and_write(n, fs, out, load).stripes.valid.sum())
+
+    def decode_and_write(
+        self, n: int, fs: FrameIndexSet, out: Path, load: Callable[[int], np.ndarray] | None = None
+    ) -> DecodedSet:
+        """decode_set, returning the decoded set itself."""
         load = load or self.dump.load_frame
         dump, dec, s = self.dump, self.decoder, self.settings
         frames = [load(i) for i in fs.indices]
@@ -128,7 +134,7 @@ class SetDecoder:
                 write_depth_png16(out / f"depth_{n:06d}.png", res.depth)
             if s.preview:
                 write_png(out / f"preview_{n:06d}.png", depth_preview(res.depth, s.depth_range_mm))
-        return int(res.stripes.valid.sum())
+        return res
 
 
 def output_subfolders(folders: list[Path]) -> list[str]:

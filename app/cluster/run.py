@@ -26,7 +26,9 @@ from app.cluster.manifest import (
 )
 from app.cluster.summary import Failure, RunSummary
 from app.cluster.task import ChunkResult, decode_chunk
+from app.cluster.zarr_depth import create_store, require_zarr
 from app.offline_decode import DumpPlan, output_subfolders, plan_dump
+from core.errors import InputError
 
 
 def run_on_cluster(args: argparse.Namespace) -> int:
@@ -45,8 +47,12 @@ def run_on_cluster(args: argparse.Namespace) -> int:
         for d in args.dump
     ]
     subs = output_subfolders([p.dump.folder for p in plans])
-    for plan in plans:
-        _check_first_frame(plan)
+    shapes = [_check_first_frame(plan) for plan in plans]
+    if args.zarr:
+        require_zarr()
+        for plan in plans:
+            if plan.settings.calibration is None:
+                raise InputError(f"{plan.dump.folder}: --zarr writes depth maps, which need a calibration")
     size = args.chunk_sets or DEFAULT_CHUNK_SETS
     chunks = [make_chunks(p.sets, size, d) for d, p in enumerate(plans)]
     manifest = run_manifest(
@@ -68,6 +74,7 @@ def run_on_cluster(args: argparse.Namespace) -> int:
             "motion": getattr(args, "motion", "auto"),
             "png16": bool(args.png16),
             "preview": bool(args.preview),
+            "zarr": bool(args.zarr),
         },
     )
     out = Path(args.out).absolute()
@@ -76,6 +83,9 @@ def run_on_cluster(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     with open_client(args.scheduler, args.connect_timeout or DEFAULT_CONNECT_TIMEOUT_S) as client:
         create_out(out, manifest, subs, resumed)
+        if args.zarr:
+            for plan, sub, shape in zip(plans, subs, shapes, strict=True):
+                create_store(out / sub, plan.dump, plan.sets, shape, size)
         summary.partials_removed = remove_partials(out)  # an earlier run's killed attempts (no task is running)
         token = uuid.uuid4().hex[:12]
         futures = {}
@@ -92,6 +102,7 @@ def run_on_cluster(args: argparse.Namespace) -> int:
                     chunk,
                     str(out),
                     sub,
+                    bool(args.zarr),
                     key=f"slscan-decode-{token}-d{d}-c{chunk.number:06d}",
                     pure=False,
                 )
@@ -116,14 +127,14 @@ def run_on_cluster(args: argparse.Namespace) -> int:
     return 1 if summary.failures else 0
 
 
-def _check_first_frame(plan: DumpPlan) -> None:
-    """The first set's frame size against the calibration, here, in one line, before any task runs."""
+def _check_first_frame(plan: DumpPlan) -> tuple[int, int]:
+    """The first set's frame size (H, W), checked against the calibration here, in one line, before any task runs."""
     cal = plan.settings.calibration
-    if cal is None:
-        return
     i = plan.sets[0].indices[0]
     frame = plan.dump.load_frame(i)
-    cal.check_camera_size(frame.shape[1], frame.shape[0], str(plan.dump.folder / plan.dump.frames[i].file))
+    if cal is not None:
+        cal.check_camera_size(frame.shape[1], frame.shape[0], str(plan.dump.folder / plan.dump.frames[i].file))
+    return frame.shape[0], frame.shape[1]
 
 
 def _reason(exc: BaseException | None) -> str:

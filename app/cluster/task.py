@@ -22,6 +22,7 @@ import numpy as np
 
 from app.cluster.chunks import Chunk
 from app.cluster.manifest import marker_path, partial_folder, write_yaml_atomically
+from app.cluster.zarr_depth import write_chunk
 from app.offline_decode import DecodeSettings, SetDecoder
 
 _DECODERS: OrderedDict[tuple[str, int], SetDecoder] = OrderedDict()  # (run's dump key, thread) -> decoder
@@ -65,13 +66,17 @@ def _decoder(key: str, settings: DecodeSettings) -> tuple[SetDecoder, float]:
     return built, time.perf_counter() - t0
 
 
-def decode_chunk(key: str, settings: DecodeSettings, chunk: Chunk, out: str, sub: str) -> ChunkResult:
-    """Decode chunk's sets into out/sub/ (as the local path names them), then write the chunk's marker."""
+def decode_chunk(
+    key: str, settings: DecodeSettings, chunk: Chunk, out: str, sub: str, zarr: bool = False
+) -> ChunkResult:
+    """Decode chunk's sets into out/sub/ (as the local path names them; with zarr, their depth maps also as the
+    chunk's Zarr chunk of out/sub/depth.zarr, which the client created), then write the chunk's marker."""
     t0, c0 = time.perf_counter(), time.thread_time()
     out_path = Path(out)
     final = out_path / sub
     partial = partial_folder(out_path, chunk, socket.gethostname(), os.getpid())
-    partial.mkdir()
+    files_dir = partial / "files"
+    files_dir.mkdir(parents=True)
     try:
         worker, setup_s = _decoder(key, settings)
         c_setup = time.thread_time() - c0
@@ -87,12 +92,18 @@ def decode_chunk(key: str, settings: DecodeSettings, chunk: Chunk, out: str, sub
             return cache[i]
 
         empty = 0
+        depths = []
         for k, fs in enumerate(chunk.sets):
-            empty += worker.decode_set(chunk.first_set + k, fs, partial, load) == 0
+            res = worker.decode_and_write(chunk.first_set + k, fs, files_dir, load)
+            empty += not res.stripes.valid.any()
+            if zarr:
+                depths.append(res.depth)
         files = {}
-        for f in sorted(partial.iterdir()):
+        for f in sorted(files_dir.iterdir()):
             files[f.name] = f.stat().st_size
             os.replace(f, final / f.name)  # whole, under its final name; an earlier attempt's copy is the same bytes
+        if zarr:
+            files.update(write_chunk(final, partial, chunk, depths))
         write_yaml_atomically(
             marker_path(out_path, sub, chunk),
             {"first_set": chunk.first_set, "sets": len(chunk.sets), "worker": worker_id(), "files": files},

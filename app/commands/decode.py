@@ -85,6 +85,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="S",
         help="with --scheduler: seconds to wait for the scheduler to answer (default 10)",
     )
+    p.add_argument(
+        "--zarr",
+        action="store_true",
+        help="with --scheduler: also every depth map in one chunked Zarr array, OUT[/<name>]/depth.zarr (xarray, dask)",
+    )
     p.set_defaults(func=run)
 
 
@@ -99,8 +104,8 @@ def _work(job: tuple[int, FrameIndexSet, str]) -> tuple[int, int]:
 
 def run(args: argparse.Namespace) -> int:
     quiet_opencv()
-    if args.scheduler is None and (args.chunk_sets is not None or args.connect_timeout is not None):
-        raise InputError("--chunk-sets and --connect-timeout go with --scheduler")
+    if args.scheduler is None and (args.chunk_sets is not None or args.connect_timeout is not None or args.zarr):
+        raise InputError("--chunk-sets, --connect-timeout and --zarr go with --scheduler")
     if args.scheduler is not None:
         from app.cluster.run import run_on_cluster  # (imports dask.distributed: only when asked for)
 

@@ -207,3 +207,23 @@ def test_a_copy_of_a_dump_under_the_same_name_is_refused(make_dump, tmp_path):
     shutil.copytree(make_dump("a", 9), other)
     r = cli("decode", make_dump("a", 9), other, "--out", tmp_path / "out", "--workers", "1")
     assert r.returncode == 2 and "a second dump named 'a'" in r.stderr and not (tmp_path / "out").exists()
+
+
+def test_zarr_holds_the_local_paths_depth_maps_and_opens_lazily(cluster, make_dump, local_out, tmp_path):
+    xr = pytest.importorskip("xarray", reason="xarray opens the store here; slscan does not need it")
+    from core.dump import read_dump
+
+    dump = make_dump("a", 9)
+    out = tmp_path / "out"
+    r = cli("decode", dump, "--out", out, "--scheduler", cluster.scheduler.address, "--chunk-sets", "3", "--zarr")
+    assert r.returncode == 0, r.stderr
+    ds = xr.open_zarr(out / "depth.zarr")
+    assert ds.depth.dims == ("set", "y", "x") and ds.depth.dtype == np.float32 and ds.depth.shape == (8, 240, 320)
+    assert ds.depth.chunks == ((3, 3, 2), (240,), (320,))  # dask-backed: nothing read yet, one chunk a task
+    local = local_out("a", 9)
+    for n in range(8):
+        assert np.array_equal(ds.depth[n].values, read_float_tiff(local / f"depth_{n:06d}.tiff")), n
+    frames = read_dump(dump).frames
+    newest = [frames[n + 1] for n in range(8)]  # sliding pairs: set n is frames n and n + 1, the newest n + 1
+    assert list(ds.timestamp_ns.values) == [f.timestamp_ns for f in newest]
+    assert list(ds.frame_id.values) == [f.frame_id for f in newest]
