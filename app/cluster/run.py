@@ -9,6 +9,8 @@ decoded, 1 when chunks failed (a rerun retries them), 2 for bad input.
 from __future__ import annotations
 
 import argparse
+import hashlib
+import pickle
 import sys
 import time
 import uuid
@@ -97,7 +99,7 @@ def run_on_cluster(args: argparse.Namespace) -> int:
                     continue
                 f = client.submit(
                     decode_chunk,
-                    f"{token}-{d}",
+                    _decoder_key(plan),
                     plan.settings,
                     chunk,
                     str(out),
@@ -125,6 +127,14 @@ def run_on_cluster(args: argparse.Namespace) -> int:
     for line in summary.lines(args.out):
         print(line)
     return 1 if summary.failures else 0
+
+
+def _decoder_key(plan: DumpPlan) -> str:
+    """What a worker keeps its decoder (and the dump index it read) under: the digest of the settings and of the
+    dump's index, so a long-lived cluster's workers reuse it across runs of the same dump and options, and never
+    across a dump that changed."""
+    settings = hashlib.sha256(pickle.dumps(plan.settings)).hexdigest()
+    return hashlib.sha256(f"{settings}:{index_digest(plan.dump.folder)}".encode()).hexdigest()[:16]
 
 
 def _check_first_frame(plan: DumpPlan) -> tuple[int, int]:

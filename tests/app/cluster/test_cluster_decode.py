@@ -73,6 +73,9 @@ def make_dump(rig, tmp_path_factory):
     return make
 
 
+PAIRED = {"a": 9, "b": 6}  # dumps the local path decodes together, in one run of several dumps (OUT/<name>/)
+
+
 @pytest.fixture(scope="module")
 def local_out(make_dump, tmp_path_factory):
     """factory(name, frames) -> the local path's output folder of that dump (decoded once)."""
@@ -80,10 +83,12 @@ def local_out(make_dump, tmp_path_factory):
 
     def get(name: str, frames: int) -> Path:
         if name not in done:
-            out = tmp_path_factory.mktemp("local") / name
-            r = cli("decode", make_dump(name, frames), "--out", out, "--workers", "1")
+            out = tmp_path_factory.mktemp("local") / "out"
+            names = list(PAIRED) if name in PAIRED else [name]
+            dumps = [make_dump(n, PAIRED.get(n, frames)) for n in names]
+            r = cli("decode", *dumps, "--out", out, "--workers", "1")
             assert r.returncode == 0, r.stderr
-            done[name] = out
+            done.update({n: out / n if len(names) > 1 else out for n in names})
         return done[name]
 
     return get
@@ -112,15 +117,11 @@ def test_outputs_are_the_local_paths_bytes_for_several_dumps(cluster, make_dump,
     assert "13 frame set(s) decoded in 5 chunk(s) on 2 worker(s)" in r.stdout and "0 failed" in r.stdout
     assert r.stdout.count("  worker ") == 2, r.stdout  # throughput per worker
     assert r.stderr == "", r.stderr  # (no warning: the workers run without Dask's MALLOC_TRIM_THRESHOLD_)
-    assert_same_files(local_out("a", 9), out / "a")
+    assert_same_files(local_out("a", 9), out / "a")  # (the local path decoded a and b in one run: OUT/a/, OUT/b/)
     assert_same_files(local_out("b", 6), out / "b")
     depth = read_float_tiff(out / "a" / "depth_000007.tiff")  # the last chunk's last set, against the truth
     ok = depth > 0
     assert ok.mean() > 0.9 and np.sqrt(np.mean((depth[ok] - rig.ground_truth.depth[ok]) ** 2)) < 1.0
-    # the local path takes several dumps as well, into the same layout
-    r = cli("decode", a, b, "--out", tmp_path / "local", "--workers", "1")
-    assert r.returncode == 0, r.stderr
-    assert_same_files(local_out("b", 6), tmp_path / "local" / "b")
 
 
 def test_a_worker_killed_mid_chunk_has_its_chunk_decoded_elsewhere(cluster, make_dump, local_out, tmp_path):
@@ -227,3 +228,23 @@ def test_zarr_holds_the_local_paths_depth_maps_and_opens_lazily(cluster, make_du
     newest = [frames[n + 1] for n in range(8)]  # sliding pairs: set n is frames n and n + 1, the newest n + 1
     assert list(ds.timestamp_ns.values) == [f.timestamp_ns for f in newest]
     assert list(ds.frame_id.values) == [f.frame_id for f in newest]
+
+
+def test_a_chunk_that_fails_is_reported_with_its_reason_and_redone_by_a_rerun(cluster, make_dump, local_out, tmp_path):
+    dump = tmp_path / "a"
+    shutil.copytree(make_dump("a", 9), dump)
+    frame = dump / "frames" / "000004.png"  # frame 4: sets 3 and 4, and set 5's previous frame: chunk 1 only
+    good = frame.read_bytes()
+    frame.write_bytes(good[: len(good) // 2])
+    out = tmp_path / "out"
+    args = ("decode", dump, "--out", out, "--scheduler", cluster.scheduler.address, "--chunk-sets", "3")
+    r = cli(*args)
+    assert r.returncode == 1, r.stderr
+    assert "5 frame set(s) decoded in 2 chunk(s)" in r.stdout and "3 failed" in r.stdout, r.stdout
+    assert re.search(rf"failed: {re.escape(str(dump))} chunk 1 \(sets 3-5\): .*000004\.png", r.stdout), r.stdout
+    assert not (out / "depth_000003.tiff").exists()
+    frame.write_bytes(good)
+    r = cli(*args)
+    assert r.returncode == 0, r.stderr
+    assert "3 frame set(s) decoded in 1 chunk(s)" in r.stdout and "5 skipped (2 chunk(s)" in r.stdout, r.stdout
+    assert_same_files(local_out("a", 9), out)
