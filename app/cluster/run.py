@@ -92,6 +92,7 @@ def run_on_cluster(args: argparse.Namespace) -> int:
         token = uuid.uuid4().hex[:12]
         futures = {}
         for d, (plan, sub) in enumerate(zip(plans, subs, strict=True)):
+            key = _decoder_key(plan)
             for chunk in chunks[d]:
                 if resumed and chunk_complete(out, sub, chunk):
                     summary.skipped_chunks += 1
@@ -99,7 +100,7 @@ def run_on_cluster(args: argparse.Namespace) -> int:
                     continue
                 f = client.submit(
                     decode_chunk,
-                    _decoder_key(plan),
+                    key,
                     plan.settings,
                     chunk,
                     str(out),

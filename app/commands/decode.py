@@ -29,6 +29,7 @@ With --scheduler the sets are decoded in chunks on a Dask cluster; every worker 
 from the dump folder itself (shared storage) and writes each file whole under its final name. OUT
 gets a manifest (decode-run.yaml): a rerun of the same command on the same OUT skips the chunks
 already complete and decodes the rest; an OUT holding another run, or anything else, is refused.
+Exit status 1 when chunks failed (the summary says why; a rerun retries them).
   slscan decode rec1/ rec2/ --out out/ --scheduler tcp://head:8786    # out/rec1/, out/rec2/
   slscan decode rec/ --out out/ --scheduler local:2                    # a LocalCluster of 2 processes
 """
