@@ -30,6 +30,7 @@ import time
 from pathlib import Path
 
 from app.argtypes import positive_int
+from core.patterns import parse_size
 
 FLAG = "--cluster"
 KEY = "cluster"
@@ -74,7 +75,7 @@ def run(args: argparse.Namespace) -> list[dict]:
     from app.offline_decode import plan_dump
 
     distributed = require_distributed()
-    w, h = (int(v) for v in args.cluster_size.lower().split("x"))
+    w, h = parse_size(args.cluster_size)  # (a malformed size is an InputError naming it)
     rows: list[dict] = []
     with tempfile.TemporaryDirectory(prefix="slscan-bench-cluster-") as tmp:
         root = Path(tmp)
