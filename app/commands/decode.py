@@ -5,19 +5,13 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import warnings
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-import cv2
-
-from app.argtypes import non_negative_int
-from app.decode.pipeline import DepthRangeWarning, EmptyResultWarning, FrameSetDecoder
-from app.export import depth_preview, stripe_colours, write_depth_png16, write_depth_tiff, write_ply, write_png
-from app.framesets import FrameIndexSet, group_frame_sets
+from app.argtypes import non_negative_int, positive_float, positive_int
+from app.framesets import FrameIndexSet
 from app.fsutil import atomic_directory
-from core.calibration import Calibration
-from core.dump import Dump, read_dump
+from app.offline_decode import DecodeSettings, DumpPlan, SetDecoder, output_subfolders, plan_dump, quiet_opencv
 from core.errors import InputError
 
 HELP = "decode a frame dump offline: depth TIFF, PLY cloud and stripe PNG per frame set"
@@ -30,6 +24,14 @@ examples:
 Frame sets come from the frames' pattern tags: a two-shot set is two frames with consecutive
 frame_id tagged {0, 1} in either order (pairs slide: 1-2, 2-3, ...); a gap or a wrong tag is never
 decoded. Without a calibration only the stripe PNGs are written.
+
+With --scheduler the sets are decoded in chunks on a Dask cluster; every worker reads its frames
+from the dump folder itself (shared storage) and writes each file whole under its final name. OUT
+gets a manifest (decode-run.yaml): a rerun of the same command on the same OUT skips the chunks
+already complete and decodes the rest; an OUT holding another run, or anything else, is refused.
+Exit status 1 when chunks failed (the summary says why; a rerun retries them).
+  slscan decode rec1/ rec2/ --out out/ --scheduler tcp://head:8786    # out/rec1/, out/rec2/
+  slscan decode rec/ --out out/ --scheduler local:2                    # a LocalCluster of 2 processes
 """
 
 _STATE: dict = {}
@@ -42,8 +44,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "decode", help=HELP, description=HELP, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    p.add_argument("dump", metavar="DUMP", help="frame dump folder (format slscan-dump v1)")
-    p.add_argument("--out", required=True, metavar="OUT", help="output folder (must not exist or be empty)")
+    p.add_argument(
+        "dump", metavar="DUMP", nargs="+", help="frame dump folder(s) (slscan-dump v1); several: OUT/<name>/ each"
+    )
+    p.add_argument(
+        "--out",
+        required=True,
+        metavar="OUT",
+        help="output folder (must not exist or be empty; with --scheduler it may hold an earlier run to resume)",
+    )
     p.add_argument("--calibration", metavar="FILE", help="calibration YAML (default: the dump's own)")
     p.add_argument("--workers", type=non_negative_int, default=0, metavar="N", help="processes (default: all cores)")
     p.add_argument("--disjoint", action="store_true", help="two-shot: disjoint pairs (1-2, 3-4) instead of sliding")
@@ -62,113 +71,108 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--png16", action="store_true", help="also write depth_NNNNNN.png (16-bit, 0.1 mm units)")
     p.add_argument("--preview", action="store_true", help="also write preview_NNNNNN.png (colourised depth)")
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="decode on a Dask cluster: tcp://host:8786, or local[:N] for N worker processes here "
+        "(needs slscan[cluster]; resumable: see below)",
+    )
+    p.add_argument(
+        "--chunk-sets", type=positive_int, metavar="N", help="with --scheduler: frame sets per task (default 60)"
+    )
+    p.add_argument(
+        "--connect-timeout",
+        type=positive_float,
+        metavar="S",
+        help="with --scheduler: seconds to wait for the scheduler to answer (default 10)",
+    )
+    p.add_argument(
+        "--zarr",
+        action="store_true",
+        help="with --scheduler: also every depth map in one chunked Zarr array, OUT[/<name>]/depth.zarr (xarray, dask)",
+    )
     p.set_defaults(func=run)
 
 
-def _quiet_opencv() -> None:
-    # A corrupt PNG is reported by us, in one line naming the file; OpenCV's own log lines would
-    # only add noise to stderr.
-    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+def _init(settings: DecodeSettings) -> None:
+    _STATE["worker"] = SetDecoder(settings)
 
 
-def _init(
-    folder: str,
-    scheme: str,
-    meta: dict,
-    cal: Calibration | None,
-    rng: tuple | None,
-    seg: str | None = None,
-    motion: str = "auto",
-) -> None:
-    _quiet_opencv()
-    warnings.simplefilter("ignore", EmptyResultWarning)
-    warnings.simplefilter("ignore", DepthRangeWarning)  # said once, by run()
-    _STATE["dump"] = read_dump(folder)
-    _STATE["decoder"] = FrameSetDecoder(scheme, meta, cal, rng, seg, motion, _STATE["dump"].mosaic)
-    _STATE["range"] = rng
-
-
-def _work(job: tuple[int, FrameIndexSet, str, bool, bool]) -> tuple[int, int]:
-    n, fs, out, png16, preview = job
-    dump: Dump = _STATE["dump"]
-    dec: FrameSetDecoder = _STATE["decoder"]
-    frames = [dump.load_frame(i) for i in fs.indices]
-    where = ", ".join(str(dump.folder / dump.frames[i].file) for i in fs.indices)
-    previous = dump.load_frame(fs.previous) if fs.previous is not None and dec.motion is not None else None
-    res = dec.decode(frames, where=where, newest=fs.newest_index, previous=previous)
-    o = Path(out)
-    write_png(o / f"stripes_{n:06d}.png", stripe_colours(res.stripes.stripe))
-    if res.depth is not None:
-        write_depth_tiff(o / f"depth_{n:06d}.tiff", res.depth)
-        write_ply(o / f"cloud_{n:06d}.ply", res.cloud)
-        if png16:
-            write_depth_png16(o / f"depth_{n:06d}.png", res.depth)
-        if preview:
-            write_png(o / f"preview_{n:06d}.png", depth_preview(res.depth, _STATE["range"]))
-    return n, int(res.stripes.valid.sum())
+def _work(job: tuple[int, FrameIndexSet, str]) -> tuple[int, int]:
+    n, fs, out = job
+    return n, _STATE["worker"].decode_set(n, fs, Path(out))
 
 
 def run(args: argparse.Namespace) -> int:
-    _quiet_opencv()
-    dump = read_dump(args.dump)
-    meta = dump.patterns_meta()
-    if meta["scheme"] != dump.scheme:
-        raise InputError(f"{dump.folder}: dump scheme {dump.scheme!r} but patterns.yaml says {meta['scheme']!r}")
-    cal = Calibration.load(args.calibration) if args.calibration else dump.calibration()
-    rng = dump.depth_range_mm()
-    n_patterns = len(meta["images"])
-    tags = [(f.frame_id, f.pattern) for f in dump.frames]
-    sets, stats = group_frame_sets(tags, dump.scheme, n_patterns, sliding=not args.disjoint)
-    if not sets:
-        raise InputError(
-            f"{dump.folder}: no complete {dump.scheme} frame set among {len(tags)} frame(s) "
-            f"(needs {n_patterns} consecutive frames tagged 0..{n_patterns - 1})"
+    quiet_opencv()
+    if args.scheduler is None and (args.chunk_sets is not None or args.connect_timeout is not None or args.zarr):
+        raise InputError("--chunk-sets, --connect-timeout and --zarr go with --scheduler")
+    if args.scheduler is not None:
+        from app.cluster.run import run_on_cluster  # (imports dask.distributed: only when asked for)
+
+        return run_on_cluster(args)
+    plans = [
+        plan_dump(
+            d,
+            args.calibration,
+            disjoint=args.disjoint,
+            segmentation=getattr(args, "segmentation", None),
+            motion=getattr(args, "motion", "auto"),
+            png16=args.png16,
+            preview=args.preview,
         )
+        for d in args.dump
+    ]
+    subfolders = output_subfolders([p.dump.folder for p in plans])
+    with atomic_directory(args.out) as tmp:
+        for plan, sub in zip(plans, subfolders, strict=True):
+            (tmp / sub).mkdir(exist_ok=True)
+            _decode_locally(plan, tmp / sub, args.workers, args.out if sub == "." else str(Path(args.out) / sub))
+    return 0
+
+
+def _decode_locally(plan: DumpPlan, tmp: Path, workers_asked: int, shown: str) -> None:
+    """Decode one dump's sets into tmp (the atomic folder that becomes final), on a local process pool."""
+    sets = plan.sets
     # Fail early, in this process, on the first set (sizes, calibration), with a one-line error.
-    warnings.simplefilter("ignore", EmptyResultWarning)
-    seg = getattr(args, "segmentation", None)
-    motion = getattr(args, "motion", "auto")
-    _init(str(dump.folder), dump.scheme, meta, cal, rng, seg, motion)
-    if _STATE["decoder"].depth_range_problem is not None:
-        print(f"slscan decode: warning: {_STATE['decoder'].depth_range_problem}", file=sys.stderr)
+    _init(plan.settings)
+    decoder = _STATE["worker"].decoder
+    if decoder.depth_range_problem is not None:
+        print(f"slscan decode: warning: {decoder.depth_range_problem}", file=sys.stderr)
     # no more processes than the sets left to decode (each costs ~80 MB and a decoder's set-up), nor than
     # MAX_WORKERS_PER_CORE per core: more only queue for the same cores
     cores = os.cpu_count() or 1
-    workers = min(args.workers or cores, MAX_WORKERS_PER_CORE * cores, max(1, len(sets) - 1))
+    workers = min(workers_asked or cores, MAX_WORKERS_PER_CORE * cores, max(1, len(sets) - 1))
     empty = 0
-    with atomic_directory(args.out) as tmp:
-        jobs = [(n, s, str(tmp), args.png16, args.preview) for n, s in enumerate(sets)]
-        first = _work(jobs[0])
-        empty += first[1] == 0
-        done = 1
-        _progress(done, len(jobs))
-        if len(jobs) > 1:
-            if workers > 1:
-                with ProcessPoolExecutor(
-                    workers, initializer=_init, initargs=(str(dump.folder), dump.scheme, meta, cal, rng, seg, motion)
-                ) as ex:
-                    for _, nvalid in ex.map(_work, jobs[1:], chunksize=2):
-                        empty += nvalid == 0
-                        done += 1
-                        _progress(done, len(jobs))
-            else:
-                for job in jobs[1:]:
-                    empty += _work(job)[1] == 0
+    jobs = [(n, s, str(tmp)) for n, s in enumerate(sets)]
+    first = _work(jobs[0])
+    empty += first[1] == 0
+    done = 1
+    _progress(done, len(jobs))
+    if len(jobs) > 1:
+        if workers > 1:
+            with ProcessPoolExecutor(workers, initializer=_init, initargs=(plan.settings,)) as ex:
+                for _, nvalid in ex.map(_work, jobs[1:], chunksize=2):
+                    empty += nvalid == 0
                     done += 1
                     _progress(done, len(jobs))
+        else:
+            for job in jobs[1:]:
+                empty += _work(job)[1] == 0
+                done += 1
+                _progress(done, len(jobs))
     if sys.stderr.isatty():
         print(file=sys.stderr)
     if empty:
         print(
-            f"slscan decode: warning: {empty} frame set(s) decoded to an empty depth map "
-            f"({_STATE['decoder'].empty_reason()})",
+            f"slscan decode: warning: {empty} frame set(s) decoded to an empty depth map ({decoder.empty_reason()})",
             file=sys.stderr,
         )
+    stats = plan.stats
     skipped = (
         f", {stats.gaps} frame_id gap(s), {stats.bad_tags} bad tag(s) skipped" if stats.gaps or stats.bad_tags else ""
     )
-    print(f"decoded {len(sets)} {dump.scheme} frame set(s) from {len(tags)} frames to {args.out}{skipped}")
-    return 0
+    print(f"decoded {len(sets)} {plan.dump.scheme} frame set(s) from {plan.n_frames} frames to {shown}{skipped}")
 
 
 def _progress(done: int, total: int) -> None:
