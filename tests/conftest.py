@@ -152,6 +152,7 @@ SLOW_FIRST = (
     # collection order. Only the order in which the workers take them: a stale entry costs time, not results.
     "tests/calibration/test_rig_source.py",
     "tests/calibration/test_wizard_window.py",
+    "tests/app/cluster/test_cluster_decode.py",
     "tests/app/decode/test_simd.py",
     "tests/calibration/test_cli.py",
     "tests/app/decode/test_reference_full.py",
