@@ -138,6 +138,7 @@ class LiveResult:
     decode_ms: float
     triangulate_ms: float
     done_ns: int
+    texture: Frame | None = None  # the newest white-light texture frame before the set, if any (colours the cloud)
 
     @property
     def latency_ms(self) -> float:
@@ -149,6 +150,14 @@ class LiveResult:
         reconstructed, app/decode/mosaic.py)."""
         newest = self.frameset.newest
         return to_rgb(newest.image, newest.mosaic)
+
+    @property
+    def colour_image(self) -> np.ndarray:
+        """The RGB image that colours the points: the texture frame (the object's own colour under white light), else
+        the newest frame of the set."""
+        if self.texture is None:
+            return self.image
+        return to_rgb(self.texture.image, self.texture.mosaic)
 
 
 @dataclass

@@ -6,6 +6,7 @@ calibration and the depth range; and what is kept of it (a recorder, a saved res
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import inspect
 import os
@@ -57,6 +58,7 @@ class Session:
     mosaic: str | None = None  # a single-chip camera's Bayer mosaic: its frames are raw (H, W) (core/mosaic.py)
     chroma: str | None = None  # colour subsampled across the rows ("4:2:2", "4:2:0"; core/chroma.py), None = full
     notices: list[str] = field(default_factory=list)  # warnings for the operator, printed by the commands
+    calibration_source: str | None = None  # the calibration file read (for the scan sidecars), None = the virtual rig's
 
     def make_loop(self, wrap_projector: Callable[[Any], Any] | None = None, **kw: Any) -> CaptureLoop:
         """Open the devices on the calling thread (a pyglet window belongs to it) and load the patterns.
@@ -213,6 +215,7 @@ def build_session(
 
     rng = tuple(depth_range) if depth_range else None
     session = Session(cfg, scheme, patterns, calibration, rng, rate, make_devices, opts)  # type: ignore[arg-type]
+    session.calibration_source = str(Path(cal_file).resolve())
     session.frame_dtype = camera_frame_dtype(cam_opts.get("pixel_format"))
     session.mosaic = camera_mosaic(cam_opts.get("pixel_format"))
     session.chroma, session.notices = chroma, notices
@@ -331,27 +334,60 @@ def describe(session: Session) -> str:
     return "the virtual rig" if session.sim is not None else str(session.config.path if session.config else "?")
 
 
-def save_result(result: LiveResult, processor: LiveDecoder, out: str | os.PathLike) -> Path:
-    """Depth TIFF, PLY, stripe pseudo-colour, depth preview and camera PNGs of one result (all or nothing)."""
+def save_result(
+    result: LiveResult, processor: LiveDecoder, out: str | os.PathLike, calibration_source: str | None = None
+) -> Path:
+    """Depth TIFF and 16-bit PNG, PLY with normals, stripe pseudo-colour, depth preview, camera PNGs, the calibration
+    and the scan.yaml sidecar of one result (all or nothing)."""
     from app.fsutil import atomic_directory
 
     out = Path(out)
     with atomic_directory(out) as tmp:
-        write_result_files(result, processor, tmp)
+        write_result_files(result, processor, tmp, calibration_source=calibration_source)
     return out
 
 
-def write_result_files(result: LiveResult, processor: LiveDecoder, folder: Path, stem: str = "") -> None:
+def write_result_files(
+    result: LiveResult, processor: LiveDecoder, folder: Path, stem: str = "", calibration_source: str | None = None
+) -> None:
     from app import export
     from app.decode.mosaic import to_rgb
+    from app.normals import point_normals
+    from app.scan_info import CALIBRATION_COPY, live_scan_info
     from core.imageio import write_rgb
+    from core.scan_sidecar import write_scan_info
 
-    export.write_depth_tiff(folder / f"{stem}depth.tiff", result.depth)
-    write_rgb(folder / f"{stem}stripes.png", export.stripe_colours(result.stripes.stripe, result.stripes.period))
-    write_rgb(
-        folder / f"{stem}depth_preview.png",
-        export.depth_preview(result.depth, processor.triangulator.depth_range_mm),
-    )
+    files = {
+        "depth": f"{stem}depth.tiff",
+        "depth_png": f"{stem}depth.png",
+        "cloud": f"{stem}cloud.ply",
+        "stripes": f"{stem}stripes.png",
+        "preview": f"{stem}depth_preview.png",
+    }
+    export.write_depth_tiff(folder / files["depth"], result.depth)
+    export.write_depth_png16(folder / files["depth_png"], result.depth)
+    write_rgb(folder / files["stripes"], export.stripe_colours(result.stripes.stripe, result.stripes.period))
+    write_rgb(folder / files["preview"], export.depth_preview(result.depth, processor.triangulator.depth_range_mm))
     for p, f in enumerate(result.frameset.frames):
         write_rgb(folder / f"{stem}camera_p{p}.png", to_rgb(f.image, f.mosaic))
-    export.write_ply(folder / f"{stem}cloud.ply", processor.triangulator.points(result.depth, result.image))
+    texture = result.texture
+    if texture is not None:
+        files["texture"] = f"{stem}texture.png"
+        write_rgb(folder / files["texture"], to_rgb(texture.image, texture.mosaic))
+    cloud = processor.triangulator.points(result.depth, result.colour_image)
+    cloud.normals = point_normals(result.depth, processor.triangulator.ray)
+    export.write_ply(folder / files["cloud"], cloud)
+    processor.calibration.save(folder / f"{stem}{CALIBRATION_COPY}")
+    info = live_scan_info(
+        processor.scheme,
+        result.frameset.frames,
+        result.frameset.arrival_ns,
+        files,
+        processor.calibration,
+        calibration_source,
+        export.DEPTH_PNG_SCALE,
+        texture,
+    )
+    if stem:
+        info = dataclasses.replace(info, calibration=f"{stem}{CALIBRATION_COPY}")
+    write_scan_info(folder / f"{stem}scan.yaml", info)

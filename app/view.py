@@ -269,7 +269,7 @@ class LiveView:
             return
         while Path(f"snapshot-{self.snapshots:03d}").exists():
             self.snapshots += 1
-        out = save_result(res, self.processor, f"snapshot-{self.snapshots:03d}")
+        out = save_result(res, self.processor, f"snapshot-{self.snapshots:03d}", self.session.calibration_source)
         self.message = f"snapshot written to {out}"
 
     def toggle_recording(self) -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import bisect
 import os
 import sys
 import warnings
@@ -11,14 +12,25 @@ from pathlib import Path
 
 import cv2
 
-from app.argtypes import non_negative_int
+from app.argtypes import non_negative_int, positive_float
 from app.decode.pipeline import DepthRangeWarning, EmptyResultWarning, FrameSetDecoder
-from app.export import depth_preview, stripe_colours, write_depth_png16, write_depth_tiff, write_ply, write_png
+from app.export import (
+    DEPTH_PNG_SCALE,
+    depth_preview,
+    stripe_colours,
+    write_depth_png16,
+    write_depth_tiff,
+    write_ply,
+    write_png,
+)
 from app.framesets import FrameIndexSet, group_frame_sets
 from app.fsutil import atomic_directory
+from app.normals import point_normals
+from app.scan_info import CALIBRATION_COPY, dump_scan_info
 from core.calibration import Calibration
 from core.dump import Dump, read_dump
 from core.errors import InputError
+from core.scan_sidecar import write_scan_info
 
 HELP = "decode a frame dump offline: depth TIFF, PLY cloud and stripe PNG per frame set"
 
@@ -60,7 +72,18 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="two-shot: auto (default) decodes a pair's newest frame alone where the scene moved since the frame "
         "before the pair; off decodes every pair from the sign of its difference",
     )
-    p.add_argument("--png16", action="store_true", help="also write depth_NNNNNN.png (16-bit, 0.1 mm units)")
+    p.add_argument(
+        "--png16",
+        action="store_true",
+        help="also write depth_NNNNNN.png (16-bit; units per metre: --depth-scale, stated in scan_NNNNNN.yaml)",
+    )
+    p.add_argument(
+        "--depth-scale",
+        type=positive_float,
+        default=DEPTH_PNG_SCALE,
+        metavar="S",
+        help=f"units per metre of --png16 (Open3D's depth_scale; default {DEPTH_PNG_SCALE:g} = 0.1 mm, 1000 = mm)",
+    )
     p.add_argument("--preview", action="store_true", help="also write preview_NNNNNN.png (colourised depth)")
     p.set_defaults(func=run)
 
@@ -79,13 +102,17 @@ def _init(
     rng: tuple | None,
     seg: str | None = None,
     motion: str = "auto",
+    outputs: dict | None = None,
 ) -> None:
+    """outputs: depth_scale (of --png16), calibration_source (for the sidecars)."""
     _quiet_opencv()
     warnings.simplefilter("ignore", EmptyResultWarning)
     warnings.simplefilter("ignore", DepthRangeWarning)  # said once, by run()
     _STATE["dump"] = read_dump(folder)
     _STATE["decoder"] = FrameSetDecoder(scheme, meta, cal, rng, seg, motion, _STATE["dump"].mosaic)
     _STATE["range"] = rng
+    _STATE["textures"] = _STATE["dump"].texture_indices()
+    _STATE["outputs"] = {"depth_scale": DEPTH_PNG_SCALE, "calibration_source": None, **(outputs or {})}
 
 
 def _work(job: tuple[int, FrameIndexSet, str, bool, bool]) -> tuple[int, int]:
@@ -95,16 +122,30 @@ def _work(job: tuple[int, FrameIndexSet, str, bool, bool]) -> tuple[int, int]:
     frames = [dump.load_frame(i) for i in fs.indices]
     where = ", ".join(str(dump.folder / dump.frames[i].file) for i in fs.indices)
     previous = dump.load_frame(fs.previous) if fs.previous is not None and dec.motion is not None else None
-    res = dec.decode(frames, where=where, newest=fs.newest_index, previous=previous)
+    textures = _STATE["textures"]
+    k = bisect.bisect_left(textures, fs.first) - 1  # the nearest texture frame before the set colours it
+    texture_index = textures[k] if k >= 0 else None
+    texture = dump.load_frame(texture_index) if texture_index is not None else None
+    res = dec.decode(frames, where=where, newest=fs.newest_index, previous=previous, texture=texture)
     o = Path(out)
-    write_png(o / f"stripes_{n:06d}.png", stripe_colours(res.stripes.stripe))
+    opts = _STATE["outputs"]
+    files = {"stripes": f"stripes_{n:06d}.png"}
+    write_png(o / files["stripes"], stripe_colours(res.stripes.stripe))
     if res.depth is not None:
-        write_depth_tiff(o / f"depth_{n:06d}.tiff", res.depth)
-        write_ply(o / f"cloud_{n:06d}.ply", res.cloud)
+        files["depth"], files["cloud"] = f"depth_{n:06d}.tiff", f"cloud_{n:06d}.ply"
+        write_depth_tiff(o / files["depth"], res.depth)
+        res.cloud.normals = point_normals(res.depth, dec.triangulator.ray)
+        write_ply(o / files["cloud"], res.cloud)
         if png16:
-            write_depth_png16(o / f"depth_{n:06d}.png", res.depth)
+            files["depth_png"] = f"depth_{n:06d}.png"
+            write_depth_png16(o / files["depth_png"], res.depth, opts["depth_scale"])
         if preview:
-            write_png(o / f"preview_{n:06d}.png", depth_preview(res.depth, _STATE["range"]))
+            files["preview"] = f"preview_{n:06d}.png"
+            write_png(o / files["preview"], depth_preview(res.depth, _STATE["range"]))
+    info = dump_scan_info(
+        dump, fs.indices, files, dec.calibration, opts["calibration_source"], opts["depth_scale"], texture_index
+    )
+    write_scan_info(o / f"scan_{n:06d}.yaml", info)
     return n, int(res.stripes.valid.sum())
 
 
@@ -118,7 +159,8 @@ def run(args: argparse.Namespace) -> int:
     rng = dump.depth_range_mm()
     n_patterns = len(meta["images"])
     tags = [(f.frame_id, f.pattern) for f in dump.frames]
-    sets, stats = group_frame_sets(tags, dump.scheme, n_patterns, sliding=not args.disjoint)
+    texture = n_patterns if dump.texture_indices() else None  # (checks the dump's texture tag)
+    sets, stats = group_frame_sets(tags, dump.scheme, n_patterns, sliding=not args.disjoint, texture_pattern=texture)
     if not sets:
         raise InputError(
             f"{dump.folder}: no complete {dump.scheme} frame set among {len(tags)} frame(s) "
@@ -128,7 +170,11 @@ def run(args: argparse.Namespace) -> int:
     warnings.simplefilter("ignore", EmptyResultWarning)
     seg = getattr(args, "segmentation", None)
     motion = getattr(args, "motion", "auto")
-    _init(str(dump.folder), dump.scheme, meta, cal, rng, seg, motion)
+    cal_source = str(Path(args.calibration).resolve()) if args.calibration else None
+    if cal is not None and cal_source is None:
+        cal_source = str((dump.folder / dump.meta["calibration"]).resolve())
+    outputs = {"depth_scale": args.depth_scale, "calibration_source": cal_source}
+    _init(str(dump.folder), dump.scheme, meta, cal, rng, seg, motion, outputs)
     if _STATE["decoder"].depth_range_problem is not None:
         print(f"slscan decode: warning: {_STATE['decoder'].depth_range_problem}", file=sys.stderr)
     # no more processes than the sets left to decode (each costs ~80 MB and a decoder's set-up), nor than
@@ -137,6 +183,8 @@ def run(args: argparse.Namespace) -> int:
     workers = min(args.workers or cores, MAX_WORKERS_PER_CORE * cores, max(1, len(sets) - 1))
     empty = 0
     with atomic_directory(args.out) as tmp:
+        if cal is not None:
+            cal.save(Path(tmp) / CALIBRATION_COPY)  # (the sidecars name it: paths in a file stay beside it)
         jobs = [(n, s, str(tmp), args.png16, args.preview) for n, s in enumerate(sets)]
         first = _work(jobs[0])
         empty += first[1] == 0
@@ -145,7 +193,9 @@ def run(args: argparse.Namespace) -> int:
         if len(jobs) > 1:
             if workers > 1:
                 with ProcessPoolExecutor(
-                    workers, initializer=_init, initargs=(str(dump.folder), dump.scheme, meta, cal, rng, seg, motion)
+                    workers,
+                    initializer=_init,
+                    initargs=(str(dump.folder), dump.scheme, meta, cal, rng, seg, motion, outputs),
                 ) as ex:
                     for _, nvalid in ex.map(_work, jobs[1:], chunksize=2):
                         empty += nvalid == 0
@@ -167,7 +217,8 @@ def run(args: argparse.Namespace) -> int:
     skipped = (
         f", {stats.gaps} frame_id gap(s), {stats.bad_tags} bad tag(s) skipped" if stats.gaps or stats.bad_tags else ""
     )
-    print(f"decoded {len(sets)} {dump.scheme} frame set(s) from {len(tags)} frames to {args.out}{skipped}")
+    textured = f", coloured from {stats.textures} texture frame(s)" if stats.textures else ""
+    print(f"decoded {len(sets)} {dump.scheme} frame set(s) from {len(tags)} frames to {args.out}{skipped}{textured}")
     return 0
 
 

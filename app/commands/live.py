@@ -138,7 +138,7 @@ def run_headless(session: Session, args: argparse.Namespace, label: str = "live"
         if pipe.capture.tagged > pipe.capture.confirmed:
             print(f"{pipe.capture.tagged - pipe.capture.confirmed} tagged frame(s) next to a break not recorded")
     if pipe.latest is not None:
-        save_result(pipe.latest, processor, out)
+        save_result(pipe.latest, processor, out, session.calibration_source)
         print(f"last scan (frames {', '.join(map(str, pipe.latest.frameset.frame_ids))}) written to {out}")
     else:
         print("no depth map was produced: nothing written")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 import numpy as np
 
@@ -74,6 +75,9 @@ def replay_session(dump_path: str, calibration: str | None = None, realtime: boo
         if dtype in (np.uint8, np.uint16):  # (other frames fail set by set, each with its file named)
             session.frame_dtype = dtype
     session.mosaic = dump.mosaic
+    session.calibration_source = str(
+        Path(calibration).resolve() if calibration else dump.folder / dump.meta["calibration"]
+    )
     return session
 
 
