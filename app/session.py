@@ -24,6 +24,7 @@ from app.config import Config, load_config
 from app.live_pipeline import LiveDecoder, LiveResult
 from app.rig_devices import make_device, rig_driver
 from app.schemes import get_scheme
+from app.texture import with_texture
 from core.calibration import Calibration
 from core.chroma import chroma_of_fourcc
 from core.errors import DeviceError, InputError
@@ -59,6 +60,7 @@ class Session:
     chroma: str | None = None  # colour subsampled across the rows ("4:2:2", "4:2:0"; core/chroma.py), None = full
     notices: list[str] = field(default_factory=list)  # warnings for the operator, printed by the commands
     calibration_source: str | None = None  # the calibration file read (for the scan sidecars), None = the virtual rig's
+    texture_every: int | None = None  # a white-light texture frame every N frames (capture.texture_every), None = off
 
     def make_loop(self, wrap_projector: Callable[[Any], Any] | None = None, **kw: Any) -> CaptureLoop:
         """Open the devices on the calling thread (a pyglet window belongs to it) and load the patterns.
@@ -69,8 +71,9 @@ class Session:
         if projector is not None and wrap_projector is not None:
             projector = wrap_projector(projector)
         if projector is not None:
-            projector.load(self.patterns.images)
+            projector.load(with_texture(self.patterns))  # (the texture frame, one past the patterns: app/texture.py)
         kw.setdefault("pace", self.pace)
+        kw.setdefault("texture_every", self.texture_every if projector is not None else None)
         return CaptureLoop(camera, projector, trigger, self.scheme, len(self.patterns), rate_hz=self.rate_hz, **kw)
 
     @property
@@ -97,7 +100,9 @@ class Session:
         """The same rig with another pattern scheme (the view's `m` key)."""
         if self.config is None:
             raise InputError(f"{self.source}: a replayed dump has one scheme ({self.scheme})")
-        return build_session(self.config, scheme=scheme)
+        session = build_session(self.config, scheme=scheme)
+        session.texture_every = self.texture_every  # (a command-line choice outlives the switch)
+        return session
 
 
 _OPTION_TYPES = {"k": int, "stripe_width": int, "channels": str, "colors": str}
@@ -166,6 +171,9 @@ def build_session(
     rate = float(cfg.get("capture.rate_hz", 60, types=(int, float)))  # type: ignore[arg-type]
     if not 1 <= rate <= 250:
         raise InputError(f"{cfg.path}: key 'capture.rate_hz' must be 1..250, found {rate}")
+    texture_every = cfg.get("capture.texture_every", None, types=int)
+    if texture_every is not None and texture_every < 2:
+        raise InputError(f"{cfg.path}: key 'capture.texture_every' must be at least 2 frames, found {texture_every}")
     depth_range = cfg.get("depth_range_mm", None)
     if depth_range is not None and not (
         isinstance(depth_range, list) and len(depth_range) == 2 and 0 < depth_range[0] < depth_range[1]
@@ -184,7 +192,9 @@ def build_session(
                 "(its projector may be a real window the virtual camera watches)"
             )
         window = None if proj_name == "sim" else (proj_name, proj_opts)
-        return _sim_session(cfg, scheme, opts, rate, depth_range, sim_overrides or {}, window)
+        session = _sim_session(cfg, scheme, opts, rate, depth_range, sim_overrides or {}, window)
+        session.texture_every = texture_every
+        return session
 
     # Real hardware: the projector's size fixes the pattern size; the calibration comes from the config.
     cal_path = cfg.get("calibration", types=str)
@@ -216,6 +226,7 @@ def build_session(
     rng = tuple(depth_range) if depth_range else None
     session = Session(cfg, scheme, patterns, calibration, rng, rate, make_devices, opts)  # type: ignore[arg-type]
     session.calibration_source = str(Path(cal_file).resolve())
+    session.texture_every = texture_every
     session.frame_dtype = camera_frame_dtype(cam_opts.get("pixel_format"))
     session.mosaic = camera_mosaic(cam_opts.get("pixel_format"))
     session.chroma, session.notices = chroma, notices
@@ -324,6 +335,7 @@ def open_recorder(session: Session, folder: str | os.PathLike, png_level: int = 
         extra={"rig": str(session.config.path)},
         png_level=png_level,
         mosaic=session.mosaic,
+        texture=True,  # (texture frames may come: every N frames, on a snapshot or on demand)
     )
     return Recorder(writer)
 

@@ -56,7 +56,8 @@ def replay_session(dump_path: str, calibration: str | None = None, realtime: boo
         raise InputError(f"{dump_path}: the dump carries no calibration; give one with --calibration FILE")
     patterns = dump.patterns()
     n = len(patterns)
-    bad = [i for i, f in enumerate(dump.frames) if f.pattern >= n]
+    texture = n if dump.texture_indices() else None  # (checks the dump's texture tag: frames tagged n are texture)
+    bad = [i for i, f in enumerate(dump.frames) if f.pattern >= n and f.pattern != texture]
     if bad:
         raise InputError(f"{dump_path}/dump.yaml: frames[{bad[0]}].pattern is outside 0..{n - 1}")
 
