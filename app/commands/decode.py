@@ -14,23 +14,13 @@ import cv2
 
 from app.argtypes import non_negative_int, positive_float
 from app.decode.pipeline import DepthRangeWarning, EmptyResultWarning, FrameSetDecoder
-from app.export import (
-    DEPTH_PNG_SCALE,
-    depth_preview,
-    stripe_colours,
-    write_depth_png16,
-    write_depth_tiff,
-    write_ply,
-    write_png,
-)
+from app.decoded_set_files import CALIBRATION_COPY, write_decoded_set
+from app.export import DEPTH_PNG_SCALE
 from app.framesets import FrameIndexSet, group_frame_sets
 from app.fsutil import atomic_directory
-from app.normals import point_normals
-from app.scan_info import CALIBRATION_COPY, dump_scan_info
 from core.calibration import Calibration
 from core.dump import Dump, read_dump
 from core.errors import InputError
-from core.scan_sidecar import write_scan_info
 
 HELP = "decode a frame dump offline: depth TIFF, PLY cloud and stripe PNG per frame set"
 
@@ -127,25 +117,8 @@ def _work(job: tuple[int, FrameIndexSet, str, bool, bool]) -> tuple[int, int]:
     texture_index = textures[k] if k >= 0 else None
     texture = dump.load_frame(texture_index) if texture_index is not None else None
     res = dec.decode(frames, where=where, newest=fs.newest_index, previous=previous, texture=texture)
-    o = Path(out)
     opts = _STATE["outputs"]
-    files = {"stripes": f"stripes_{n:06d}.png"}
-    write_png(o / files["stripes"], stripe_colours(res.stripes.stripe))
-    if res.depth is not None:
-        files["depth"], files["cloud"] = f"depth_{n:06d}.tiff", f"cloud_{n:06d}.ply"
-        write_depth_tiff(o / files["depth"], res.depth)
-        res.cloud.normals = point_normals(res.depth, dec.triangulator.ray)
-        write_ply(o / files["cloud"], res.cloud)
-        if png16:
-            files["depth_png"] = f"depth_{n:06d}.png"
-            write_depth_png16(o / files["depth_png"], res.depth, opts["depth_scale"])
-        if preview:
-            files["preview"] = f"preview_{n:06d}.png"
-            write_png(o / files["preview"], depth_preview(res.depth, _STATE["range"]))
-    info = dump_scan_info(
-        dump, fs.indices, files, dec.calibration, opts["calibration_source"], opts["depth_scale"], texture_index
-    )
-    write_scan_info(o / f"scan_{n:06d}.yaml", info)
+    write_decoded_set(Path(out), n, res, dump, fs.indices, dec, texture_index, png16, preview, _STATE["range"], **opts)
     return n, int(res.stripes.valid.sum())
 
 

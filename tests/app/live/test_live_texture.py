@@ -76,6 +76,19 @@ def test_texture_every_n_frames_is_never_paired_and_colours_the_clouds(tmp_path,
     sets, stats = group_frame_sets(tags, "two-shot", 2, texture_pattern=2)
     assert stats.textures == len(textures) and stats.bad_tags == 0
     assert not {dump.frames[i].frame_id for s in sets for i in s.indices} & set(textures)
+    # replayed through the live pipeline: the same texture frames colour the sets after them
+    from app.commands.replay import replay_session
+
+    replay = replay_session(str(tmp_path / "rec"))
+    replayed = []
+    pipe = LivePipeline(lambda: replay.make_loop(), processor, on_result=replayed.append, max_frames=10**9)
+    pipe.start()
+    pipe.wait()
+    assert pipe.error is None and pipe.capture.refused == 0 and pipe.capture.textures == len(textures)
+    assert replayed and all(set(r.frameset.frame_ids).isdisjoint(textures) for r in replayed)
+    for r in replayed:
+        before = [t for t in textures if t < min(r.frameset.frame_ids)]
+        assert (r.texture.frame_id if r.texture is not None else None) == (before[-1] if before else None)
 
 
 def test_headless_session_saves_a_textured_scan_with_its_sidecar(tmp_path, capsys):
