@@ -136,3 +136,26 @@ def test_scan_sidecar_fields(decoded):
     cal = Calibration.load(out / info.calibration)
     assert info.calibration_sha256 == calibration_digest(cal) == calibration_digest(rig.calibration)
     assert info.calibration_source == str((dump / "calibration.yaml").resolve())
+
+
+@pytest.mark.parametrize(
+    "edit, field",
+    [
+        (("depth_scale: 10000.0", "depth_scale: -1"), "depth_scale"),
+        (("depth_scale: 10000.0", "depth_scale: null"), "depth_scale"),
+        (("units: mm", "units: m"), "units"),
+        (("- 40\n", "- x\n"), "frame_ids"),
+        (("wall_clock_start: '", "wall_clock_start: 'noon "), "wall_clock_start"),
+        (("  cloud: cloud_000000.ply", "  cloud: ../cloud.ply"), "files.cloud"),
+    ],
+)
+def test_a_malformed_sidecar_is_refused_naming_the_field(decoded, tmp_path, edit, field):
+    from core.errors import InputError
+
+    text = (decoded["plane"][1] / "scan_000000.yaml").read_text()
+    assert edit[0] in text
+    bad = tmp_path / "scan.yaml"
+    bad.write_text(text.replace(edit[0], edit[1], 1))
+    with pytest.raises(InputError) as err:
+        read_scan_info(bad)
+    assert str(bad) in str(err.value) and field in str(err.value) and "\n" not in str(err.value)

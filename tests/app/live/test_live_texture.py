@@ -5,6 +5,7 @@ scan.yaml."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import yaml
 
 from app.cli import main
@@ -12,6 +13,7 @@ from app.framesets import group_frame_sets
 from app.live_pipeline import LivePipeline
 from app.session import build_session, open_recorder
 from core.dump import read_dump
+from core.errors import InputError
 from core.imageio import read_float_tiff, read_rgb
 from core.scan_sidecar import read_scan_info
 from core.wallclock import now_ns, parse_wall_clock
@@ -116,3 +118,15 @@ def _default_config():
     from app.config import DEFAULT_CONFIG
 
     return DEFAULT_CONFIG
+
+
+def test_a_texture_interval_below_two_is_one_line(tmp_path, run_cli):
+    cfg = yaml.safe_load(open(_default_config()).read())
+    cfg.setdefault("capture", {})["texture_every"] = 1
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    with pytest.raises(InputError, match=r"bad.yaml: key 'capture.texture_every' must be at least 2"):
+        build_session(path)
+    r = run_cli("live", "--headless", "--frames", "10", "--texture-every", "1", "--out", tmp_path / "o")
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1 and "--texture-every 1" in lines[0], r.stderr
