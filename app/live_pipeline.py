@@ -277,9 +277,10 @@ class LivePipeline:
             self._cv.notify_all()
 
     def request_texture(self) -> bool:
-        """Ask the capture loop for a texture frame at its next tick; False before the loop runs."""
+        """Ask the capture loop for a texture frame at its next tick; False before the loop runs, or without a
+        projector (a replay takes the texture frames its dump recorded)."""
         loop = self.loop
-        if loop is None:
+        if loop is None or loop.projector is None:
             return False
         loop.request_texture()
         return True
