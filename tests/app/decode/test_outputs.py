@@ -159,3 +159,21 @@ def test_a_malformed_sidecar_is_refused_naming_the_field(decoded, tmp_path, edit
     with pytest.raises(InputError) as err:
         read_scan_info(bad)
     assert str(bad) in str(err.value) and field in str(err.value) and "\n" not in str(err.value)
+
+
+def test_a_dump_from_before_recorded_utc_decodes_as_before_with_no_wall_clock(decoded, tmp_path, run_cli_module):
+    import shutil
+
+    _, _, dump = decoded["plane"]
+    old = tmp_path / "old"
+    shutil.copytree(dump, old)
+    index = old / "dump.yaml"
+    index.write_text("".join(line for line in index.read_text().splitlines(True) if "recorded_utc" not in line))
+    r = run_cli_module("decode", old, "--out", tmp_path / "out", "--workers", "1")
+    assert r.returncode == 0, r.stderr
+    info = read_scan_info(tmp_path / "out" / "scan_000000.yaml")
+    assert info.wall_clock_start is None and info.frame_ids == (40, 41) and info.texture_frame_id is None
+    np.testing.assert_array_equal(
+        read_float_tiff(tmp_path / "out" / "depth_000000.tiff"),
+        read_float_tiff(decoded["plane"][1] / "depth_000000.tiff"),
+    )
