@@ -40,7 +40,8 @@ def _tangent(P: np.ndarray, valid: np.ndarray, axis: int) -> np.ndarray:
 
 def _window_mean(t: np.ndarray, window: int) -> np.ndarray:
     """Per pixel the mean of the finite tangents in the window x window square around it (NaN where none): the sum
-    telescopes to a difference across the window, so depth noise weighs ~window^1.5 times less."""
+    telescopes to a difference across the window, so random depth noise weighs less (a systematic ripple of the
+    decoded depth, wider than the window, does not average out)."""
     ok = np.isfinite(t).all(axis=-1)
     w = cv2.boxFilter(ok.astype(np.float64), -1, (window, window), normalize=False, borderType=cv2.BORDER_CONSTANT)
     out = np.empty_like(t)
