@@ -88,6 +88,7 @@ class CaptureStats:
     untracked: int = 0  # no flip recorded at the frame's tick, or counters not anchored
     resyncs: int = 0  # a counter reset (trigger box reboot, camera restart) re-anchored the schedule
     sets: int = 0  # complete frame sets handed on
+    textures: int = 0  # white-light texture frames tagged (in no set; also counted in tagged and confirmed)
     confirmed: int = 0  # tagged frames whose tag the pixel check confirmed (all tagged ones without it)
 
     @property
@@ -137,6 +138,8 @@ class _Accepted:
 # A two-shot frame must differ from its predecessor (the inverse pattern) at least this many times
 # more than from the frame before that (the same pattern): a flip that came late repeats a pattern.
 ALTERNATION_RATIO = 2.0
+# A texture frame (white) must be at least this much brighter on average than the pattern frame before it.
+TEXTURE_BRIGHTER = 1.2
 # A trigger count at most this far behind the last one (and past the first few) is a late delivery.
 SWAP_WINDOW = 8
 # The capture loop asks the trigger box for its count at least this often (between, it peeks at events).
@@ -166,6 +169,9 @@ class FrameChecker:
     # Suits patterns that all look different in the camera (two-shot's pair); not Gray code, whose
     # coarse bits can look alike on a small board (the calibration wizard checks its takes by pixels).
     check_alternation: bool = False
+    # The tag of white-light texture frames (app/texture.py: n_patterns, one past the patterns), None = none shown.
+    # A texture frame passes the same tag checks, is handed on (and recorded), and breaks the pair: it is in no set.
+    texture_pattern: int | None = None
     stats: CaptureStats = field(default_factory=CaptureStats)
 
     def __post_init__(self) -> None:
@@ -177,6 +183,7 @@ class FrameChecker:
         self._last_trigger: int | None = None
         self._last_id: int | None = None
         self._last_sample: bytes | None = None
+        self._last_texture_tick: int | None = None
         self.last_reason: str = ""
         self.confirmed: list[Frame] = []
 
@@ -261,7 +268,8 @@ class FrameChecker:
             return self._refuse("untracked", f"frame {frame.frame_id}: no pattern recorded at tick {tick}")
         if shown.late:
             return self._refuse("mistagged", f"frame {frame.frame_id}: the flip at tick {tick} was late")
-        if not 0 <= shown.pattern < self.n_patterns:
+        texture = self.texture_pattern is not None and shown.pattern == self.texture_pattern
+        if not (0 <= shown.pattern < self.n_patterns or texture):
             return self._refuse("mistagged", f"frame {frame.frame_id}: tag {shown.pattern} outside the scheme")
         if frame.pattern is not None and frame.pattern != shown.pattern:
             return self._refuse(
@@ -275,13 +283,40 @@ class FrameChecker:
             if frame.frame_id != last.frame.frame_id + 1 or tick != last.tick + 1:
                 # ids consecutive but ticks not: the two counters disagree; trust neither for a pair.
                 self._history.clear()
+        if texture:
+            # Its tag is the flip log's, checked above; its pixels must be brighter than the pattern before it (white
+            # lights every channel a pattern lights). It stays in the history as the next frame's predecessor: a
+            # late flip after it leaves that frame white, which the pixel check sees. It is in no set:
+            # group_frame_sets never pairs its tag.
+            acc = _Accepted(tagged, tick, confirmed=True)
+            if self.check_alternation:
+                acc.sample = _alternation_sample(frame.image)
+                h = self._history
+                if h and h[-1].tick == tick - 1 and h[-1].sample is not None:
+                    if float(np.mean(acc.sample)) < TEXTURE_BRIGHTER * float(np.mean(h[-1].sample)):
+                        st.tagged -= 1
+                        return self._refuse(
+                            "mistagged", f"frame {frame.frame_id}: a texture frame no brighter than a pattern (late?)"
+                        )
+            st.textures += 1
+            st.confirmed += 1
+            self.confirmed.append(tagged)
+            self._last_texture_tick = tick
+            self._history.append(acc)
+            return tagged, None
         acc = _Accepted(tagged, tick)
         if self.check_alternation:
             acc.sample = _alternation_sample(frame.image)
             acc.verified = False
             h = self._history
             ref = self._refs.get(shown.pattern)
-            if h and h[-1].tick == tick - 1 and ref is not None and ref[0] == tick - self.n_patterns:
+            # (the frame of this pattern one cycle back; two cycles back where a texture frame took that tick: an
+            # older reference can only refuse more, never pass a frame that repeats its predecessor)
+            n = self.n_patterns
+            cycle_back = ref is not None and (
+                ref[0] == tick - n or (ref[0] == tick - 2 * n and self._last_texture_tick == tick - n)
+            )
+            if h and h[-1].tick == tick - 1 and cycle_back:
                 d_prev = float(np.mean(np.abs(acc.sample - h[-1].sample)))  # type: ignore[operator]
                 d_same = float(np.mean(np.abs(acc.sample - ref[1])))
                 if d_prev <= ALTERNATION_RATIO * d_same:
@@ -357,6 +392,7 @@ class LoopEvent:
     frameset: FrameSet | None
     arrival_ns: int
     reason: str = ""  # why the frame was refused
+    texture: Frame | None = None  # this step's frame, tagged, when it is a white-light texture frame
 
 
 class CaptureLoop:
@@ -390,7 +426,11 @@ class CaptureLoop:
         projector_thread: bool | None = None,
         clock: Callable[[], int] = time.monotonic_ns,
         owns_devices: bool = True,
+        texture_every: int | None = None,
     ) -> None:
+        """texture_every: show the white-light texture frame (projector image n_patterns, app/texture.py, which the
+        projector must have loaded) at every tick that is a multiple of it; request_texture() asks for one now. Replay
+        (no projector) takes the texture frames a dump recorded."""
         self.camera, self.projector, self.trigger = camera, projector, trigger
         self.owns_devices = owns_devices  # False: close() stops the devices but leaves them open
         # With a trigger, flips follow the trigger counter on their own thread, so a slow grab or
@@ -420,7 +460,12 @@ class CaptureLoop:
             self.flips,
             device_tags=projector is None,
             check_alternation=projector is not None and get_scheme(scheme).alternates,
+            texture_pattern=n_patterns,
         )
+        if texture_every is not None and texture_every < 2:
+            raise ValueError(f"texture_every {texture_every}: must be at least 2 (or None)")
+        self.texture_every = texture_every
+        self._texture_requested = False  # (set by any thread, taken by the one that shows)
         self.tick = 0  # steps made
         self._deadline = 0
         self._started = False
@@ -430,6 +475,19 @@ class CaptureLoop:
     @property
     def stats(self) -> CaptureStats:
         return self.checker.stats
+
+    def request_texture(self) -> None:
+        """Show the texture frame at the next tick the projector is given (snapshot, the view's t key)."""
+        self._texture_requested = True
+
+    def _pattern_at(self, tick: int, order_index: int) -> int:
+        """The image to show at a tick: the texture frame when it is due there, else the pattern order's."""
+        if self.texture_every is not None and tick > 0 and tick % self.texture_every == 0:
+            return self.checker.n_patterns
+        if self._texture_requested:
+            self._texture_requested = False
+            return self.checker.n_patterns
+        return self.order[order_index % len(self.order)]
 
     @property
     def stop_requested(self) -> bool:
@@ -498,7 +556,8 @@ class CaptureLoop:
         tagged, fs = self.checker.push(frame, arrival)
         self.tick += 1
         reason = "" if tagged is not None else self.checker.last_reason
-        return LoopEvent(tagged, frame, list(self.checker.confirmed), fs, arrival, reason)
+        texture = tagged if tagged is not None and tagged.pattern == self.checker.texture_pattern else None
+        return LoopEvent(tagged, frame, list(self.checker.confirmed), fs, arrival, reason, texture)
 
     def _pace(self) -> None:
         if not self.pace:
@@ -513,7 +572,7 @@ class CaptureLoop:
     def _show_untriggered(self) -> None:
         if self.projector is None:
             return
-        pattern = self.order[self.tick % len(self.order)]
+        pattern = self._pattern_at(self.tick, self.tick)
         flip_ns = self.projector.show(pattern) or self.clock()
         self.flips.record(Shown(self.tick, pattern, flip_ns))
 
@@ -538,7 +597,7 @@ class CaptureLoop:
         if before < self._count:
             self._resync()
             before = self._read_counter()
-        pattern = self.order[before % len(self.order)]
+        pattern = self._pattern_at(before + 1, before)
         shown_ns = self.projector.show(pattern)  # type: ignore[union-attr]
         after = self._read_counter()
         flip_ns = shown_ns or self.clock()

@@ -17,7 +17,7 @@ SCHEMA: dict[str, set[str] | None] = {
     "rig": {"camera", "projector", "trigger"},
     "sim": None,
     "scheme": {"name", "k", "channels", "colors", "stripe_width", "segmentation", "motion"},
-    "capture": {"rate_hz"},
+    "capture": {"rate_hz", "texture_every"},
     "depth_range_mm": None,
     "calibration": None,
     "board": None,

@@ -10,6 +10,8 @@ so tags are checked, never assumed):
   slide (frames 1-2, 2-3, 3-4, ...) so 60 frames/s give up to 60 sets/s; a frame_id gap or a
   wrong tag breaks the pair. The order is reported so the decoder knows which is frame 1.
 - graycode (n patterns): n frames with consecutive frame_id tagged 0, 1, ..., n-1 in order.
+- a white-light texture frame (tagged texture_pattern = n_patterns, one past the patterns) is in no set: every rule
+  above needs tags below n_patterns, and the frames on either side of it are not consecutive.
 """
 
 from __future__ import annotations
@@ -41,22 +43,33 @@ class FrameSetStats:
     frames: int = 0
     gaps: int = 0  # frame_id jumps (dropped frames)
     bad_tags: int = 0  # tags outside the scheme or a repeated tag where a pair needed the other one
+    textures: int = 0  # white-light texture frames (in no set)
 
 
 def group_frame_sets(
-    tags: Sequence[tuple[int, int]], scheme: str, n_patterns: int, *, sliding: bool = True
+    tags: Sequence[tuple[int, int]],
+    scheme: str,
+    n_patterns: int,
+    *,
+    sliding: bool = True,
+    texture_pattern: int | None = None,
 ) -> tuple[list[FrameIndexSet], FrameSetStats]:
     """Group (frame_id, pattern) tags, in capture order, into complete frame sets.
 
-    sliding=False makes two-shot pairs disjoint (frames 1-2, 3-4, ...) instead of sliding.
+    sliding=False makes two-shot pairs disjoint (frames 1-2, 3-4, ...) instead of sliding. texture_pattern: the tag
+    of white-light texture frames (n_patterns), counted apart from bad tags; no set takes one either way.
     """
+    if texture_pattern is not None and texture_pattern != n_patterns:
+        raise ValueError(f"texture_pattern {texture_pattern} must be n_patterns ({n_patterns}): one past the patterns")
     stats = FrameSetStats(frames=len(tags))
     sets: list[FrameIndexSet] = []
     for i in range(1, len(tags)):
         if tags[i][0] != tags[i - 1][0] + 1:
             stats.gaps += 1
     for _, pat in tags:
-        if not 0 <= pat < n_patterns:
+        if pat == texture_pattern:
+            stats.textures += 1
+        elif not 0 <= pat < n_patterns:
             stats.bad_tags += 1
     frames_per_set = get_scheme(scheme).shots  # an unknown scheme is an InputError
     if frames_per_set == 1:

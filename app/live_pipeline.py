@@ -38,6 +38,10 @@ from drivers.base import Frame
 DECODE_WORKERS = max(1, min(2, os.cpu_count() or 1))
 WORKERS_HELP = f"decode threads (default {DECODE_WORKERS}: up to 2, as many as the cores)"
 
+# A headless run's last scan is saved: a texture frame is asked for this many frames before the end, so that the
+# sets after it (from the fourth frame on: the pixel check restarts after the break) colour the saved cloud.
+TEXTURE_LEAD = 12
+
 # ------------------------------------------------------------------------------------ decode stage
 
 
@@ -138,6 +142,7 @@ class LiveResult:
     decode_ms: float
     triangulate_ms: float
     done_ns: int
+    texture: Frame | None = None  # the newest white-light texture frame before the set, if any (colours the cloud)
 
     @property
     def latency_ms(self) -> float:
@@ -149,6 +154,14 @@ class LiveResult:
         reconstructed, app/decode/mosaic.py)."""
         newest = self.frameset.newest
         return to_rgb(newest.image, newest.mosaic)
+
+    @property
+    def colour_image(self) -> np.ndarray:
+        """The RGB image that colours the points: the texture frame (the object's own colour under white light), else
+        the newest frame of the set."""
+        if self.texture is None:
+            return self.image
+        return to_rgb(self.texture.image, self.texture.mosaic)
 
 
 @dataclass
@@ -212,6 +225,7 @@ class LivePipeline:
         recorder: Recorder | None = None,
         on_result: Callable[[LiveResult], None] | None = None,
         on_frame: Callable[[Frame], None] | None = None,
+        texture_at_end: bool = False,
     ) -> None:
         self.make_loop = make_loop
         self.processor = processor
@@ -228,7 +242,10 @@ class LivePipeline:
         self.decode_error: str | None = None
         self.latest: LiveResult | None = None
         self.latest_frame: Frame | None = None
-        self._sets: deque[tuple[int, FrameSet]] = deque()
+        # the newest white-light texture frame: it colours the sets that complete after it (LiveResult.texture)
+        self.latest_texture: Frame | None = None
+        self.texture_at_end = texture_at_end  # with max_frames: a texture frame TEXTURE_LEAD frames before the end
+        self._sets: deque[tuple[int, FrameSet, Frame | None]] = deque()
         self._queue_sets = max(1, queue_sets)
         self._cv = threading.Condition()
         self._stop = threading.Event()
@@ -258,6 +275,15 @@ class LivePipeline:
         self._stop.set()
         with self._cv:
             self._cv.notify_all()
+
+    def request_texture(self) -> bool:
+        """Ask the capture loop for a texture frame at its next tick; False before the loop runs, or without a
+        projector (a replay takes the texture frames its dump recorded)."""
+        loop = self.loop
+        if loop is None or loop.projector is None:
+            return False
+        loop.request_texture()
+        return True
 
     def set_recorder(self, recorder: Recorder | None) -> Recorder | None:
         """Start (a Recorder) or stop (None) recording; returns the previous recorder (to close)."""
@@ -303,10 +329,14 @@ class LivePipeline:
                     self.stop_reason = "the projector window was closed"
                     break
                 t0 = time.perf_counter()
+                if self.texture_at_end and self.max_frames is not None and n == self.max_frames - TEXTURE_LEAD:
+                    loop.request_texture()
                 ev = loop.step()
                 self.stats.grab_ms.append((time.perf_counter() - t0) * 1e3)
                 self.stats.frame_arrivals.append(ev.arrival_ns)
                 n += 1
+                if ev.texture is not None:
+                    self.latest_texture = ev.texture
                 self.latest_frame = ev.raw
                 if self.on_frame is not None:
                     self.on_frame(ev.raw)
@@ -349,7 +379,7 @@ class LivePipeline:
             if len(self._sets) >= self._queue_sets:
                 self._sets.popleft()
                 self.stats.stale_sets += 1
-            self._sets.append((self._set_index, fs))
+            self._sets.append((self._set_index, fs, self.latest_texture))
             self._set_index += 1
             self._cv.notify()
 
@@ -374,7 +404,7 @@ class LivePipeline:
                 if self._stop.is_set() and not self._acq_done.is_set():
                     self._sets.clear()
                     return
-                index, fs = self._sets.popleft()
+                index, fs, texture = self._sets.popleft()
             try:
                 t0 = time.perf_counter()
                 previous = fs.previous.image if fs.previous is not None else None
@@ -386,7 +416,7 @@ class LivePipeline:
                 self.stats.failed += 1
                 self.decode_error = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
                 continue
-            res = LiveResult(index, fs, stripes, depth, (t1 - t0) * 1e3, (t2 - t1) * 1e3, time.monotonic_ns())
+            res = LiveResult(index, fs, stripes, depth, (t1 - t0) * 1e3, (t2 - t1) * 1e3, time.monotonic_ns(), texture)
             st = self.stats
             with self._lock:
                 st.decoded += 1
@@ -438,6 +468,7 @@ class LivePipeline:
             "stale_sets": st.stale_sets,
             "stale_results": st.stale_results,
             "recorded": st.recorded,
+            "textures": cap.textures,
             "capture": cap.as_dict(),
             "cpu_ms_per_frame": {k: 1e3 * v / max(cap.frames, 1) for k, v in sorted(st.cpu_s.items())},
             "elapsed_s": elapsed,

@@ -3,7 +3,9 @@ process pool and its Dask workers (app/cluster/), so both write the same bytes."
 
 from __future__ import annotations
 
+import bisect
 import hashlib
+import os
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -13,7 +15,8 @@ import cv2
 import numpy as np
 
 from app.decode.pipeline import DecodedSet, DepthRangeWarning, EmptyResultWarning, FrameSetDecoder
-from app.export import depth_preview, stripe_colours, write_depth_png16, write_depth_tiff, write_ply, write_png
+from app.decoded_set_files import CALIBRATION_COPY, write_decoded_set
+from app.export import DEPTH_PNG_SCALE
 from app.framesets import FrameIndexSet, FrameSetStats, group_frame_sets
 from core.calibration import Calibration
 from core.dump import Dump, read_dump
@@ -33,6 +36,8 @@ class DecodeSettings:
     motion: str = "auto"
     png16: bool = False
     preview: bool = False
+    depth_scale: float = DEPTH_PNG_SCALE  # units per metre of the 16-bit depth PNGs
+    calibration_source: str | None = None  # the calibration file read (the sidecars name it)
 
 
 @dataclass
@@ -56,6 +61,7 @@ def plan_dump(
     motion: str = "auto",
     png16: bool = False,
     preview: bool = False,
+    depth_scale: float = DEPTH_PNG_SCALE,
 ) -> DumpPlan:
     """Read a dump and group its frame sets; a dump with no complete set is an InputError naming it."""
     dump = read_dump(folder)
@@ -69,14 +75,25 @@ def plan_dump(
         cal_file = dump.folder / dump.meta["calibration"] if cal is not None else None
     n_patterns = len(meta["images"])
     tags = [(f.frame_id, f.pattern) for f in dump.frames]
-    sets, stats = group_frame_sets(tags, dump.scheme, n_patterns, sliding=not disjoint)
+    texture = n_patterns if dump.texture_indices() else None  # (checks the dump's texture tag)
+    sets, stats = group_frame_sets(tags, dump.scheme, n_patterns, sliding=not disjoint, texture_pattern=texture)
     if not sets:
         raise InputError(
             f"{dump.folder}: no complete {dump.scheme} frame set among {len(tags)} frame(s) "
             f"(needs {n_patterns} consecutive frames tagged 0..{n_patterns - 1})"
         )
     settings = DecodeSettings(
-        str(dump.folder), dump.scheme, meta, cal, dump.depth_range_mm(), segmentation, motion, png16, preview
+        str(dump.folder),
+        dump.scheme,
+        meta,
+        cal,
+        dump.depth_range_mm(),
+        segmentation,
+        motion,
+        png16,
+        preview,
+        depth_scale,
+        str(cal_file.resolve()) if cal_file is not None else None,
     )
     digest = hashlib.sha256(cal_file.read_bytes()).hexdigest() if cal_file is not None else ""
     return DumpPlan(dump, settings, sets, stats, len(tags), digest)
@@ -88,13 +105,12 @@ def quiet_opencv() -> None:
     cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
 
 
-def output_names(n: int, has_depth: bool, png16: bool, preview: bool) -> list[str]:
-    """The files set n writes, in the order written (depth-derived ones only with a calibration)."""
-    names = [f"stripes_{n:06d}.png"]
-    if has_depth:
-        names += [f"depth_{n:06d}.tiff", f"cloud_{n:06d}.ply"]
-        names += [f"depth_{n:06d}.png"] * png16 + [f"preview_{n:06d}.png"] * preview
-    return names
+def write_calibration_copy(plan: DumpPlan, folder: Path) -> None:
+    """The calibration used, beside the sets' sidecars that name it (CALIBRATION_COPY), once per output folder."""
+    if plan.settings.calibration is not None:
+        partial = folder / f".partial-{os.getpid()}-{CALIBRATION_COPY}"  # (whole under its final name, or absent)
+        plan.settings.calibration.save(partial)
+        os.replace(partial, folder / CALIBRATION_COPY)
 
 
 class SetDecoder:
@@ -110,10 +126,11 @@ class SetDecoder:
         self.decoder = FrameSetDecoder(
             s.scheme, s.meta, s.calibration, s.depth_range_mm, s.segmentation, s.motion, self.dump.mosaic
         )
+        self.textures = self.dump.texture_indices()
 
     def decode_set(self, n: int, fs: FrameIndexSet, out: Path, load: Callable[[int], np.ndarray] | None = None) -> int:
-        """Decode set n into out/ (output_names); returns its count of valid pixels. load: frame index -> image
-        (a caller's cache; default: read the dump's file)."""
+        """Decode set n into out/ (app/decoded_set_files.py); returns its count of valid pixels. load: frame index
+        -> image (a caller's cache; default: read the dump's file)."""
         return int(self.decode_and_write(n, fs, out, load).stripes.valid.sum())
 
     def decode_and_write(
@@ -125,15 +142,24 @@ class SetDecoder:
         frames = [load(i) for i in fs.indices]
         where = ", ".join(str(dump.folder / dump.frames[i].file) for i in fs.indices)
         previous = load(fs.previous) if fs.previous is not None and dec.motion is not None else None
-        res = dec.decode(frames, where=where, newest=fs.newest_index, previous=previous)
-        write_png(out / f"stripes_{n:06d}.png", stripe_colours(res.stripes.stripe))
-        if res.depth is not None:
-            write_depth_tiff(out / f"depth_{n:06d}.tiff", res.depth)
-            write_ply(out / f"cloud_{n:06d}.ply", res.cloud)
-            if s.png16:
-                write_depth_png16(out / f"depth_{n:06d}.png", res.depth)
-            if s.preview:
-                write_png(out / f"preview_{n:06d}.png", depth_preview(res.depth, s.depth_range_mm))
+        k = bisect.bisect_left(self.textures, fs.first) - 1  # the nearest texture frame before the set colours it
+        texture_index = self.textures[k] if k >= 0 else None
+        texture = load(texture_index) if texture_index is not None else None
+        res = dec.decode(frames, where=where, newest=fs.newest_index, previous=previous, texture=texture)
+        write_decoded_set(
+            out,
+            n,
+            res,
+            dump,
+            fs.indices,
+            dec,
+            texture_index,
+            s.png16,
+            s.preview,
+            s.depth_range_mm,
+            depth_scale=s.depth_scale,
+            calibration_source=s.calibration_source,
+        )
         return res
 
 

@@ -195,6 +195,9 @@ class DepthPublisher:
 
 
 def _colour_image(result: LiveResult) -> np.ndarray:
+    """The texture frame before the set (the object's own colour) where there is one, else _colour_image_of."""
+    if result.texture is not None:
+        return result.colour_image
     return _colour_image_of([f.image for f in result.frameset.frames])
 
 

@@ -6,6 +6,7 @@ calibration and the depth range; and what is kept of it (a recorder, a saved res
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import inspect
 import os
@@ -23,6 +24,7 @@ from app.config import Config, load_config
 from app.live_pipeline import LiveDecoder, LiveResult
 from app.rig_devices import make_device, rig_driver
 from app.schemes import get_scheme
+from app.texture import with_texture
 from core.calibration import Calibration
 from core.chroma import chroma_of_fourcc
 from core.depth_range_field import depth_range_field
@@ -62,6 +64,8 @@ class Session:
     mosaic: str | None = None  # a single-chip camera's Bayer mosaic: its frames are raw (H, W) (core/mosaic.py)
     chroma: str | None = None  # colour subsampled across the rows ("4:2:2", "4:2:0"; core/chroma.py), None = full
     notices: list[str] = field(default_factory=list)  # warnings for the operator, printed by the commands
+    calibration_source: str | None = None  # the calibration file read (for the scan sidecars), None = the virtual rig's
+    texture_every: int | None = None  # a white-light texture frame every N frames (capture.texture_every), None = off
 
     def make_loop(self, wrap_projector: Callable[[Any], Any] | None = None, **kw: Any) -> CaptureLoop:
         """Open the devices on the calling thread (a pyglet window belongs to it) and load the patterns.
@@ -72,8 +76,9 @@ class Session:
         if projector is not None and wrap_projector is not None:
             projector = wrap_projector(projector)
         if projector is not None:
-            projector.load(self.patterns.images)
+            projector.load(with_texture(self.patterns))  # (the texture frame, one past the patterns: app/texture.py)
         kw.setdefault("pace", self.pace)
+        kw.setdefault("texture_every", self.texture_every if projector is not None else None)
         return CaptureLoop(camera, projector, trigger, self.scheme, len(self.patterns), rate_hz=self.rate_hz, **kw)
 
     @property
@@ -118,7 +123,9 @@ class Session:
         """The same rig with another pattern scheme (the view's `m` key)."""
         if self.config is None:
             raise InputError(f"{self.source}: a replayed dump has one scheme ({self.scheme})")
-        return build_session(self.config, scheme=scheme)
+        session = build_session(self.config, scheme=scheme)
+        session.texture_every = self.texture_every  # (a command-line choice outlives the switch)
+        return session
 
 
 _OPTION_TYPES = {"k": int, "stripe_width": int, "channels": str, "colors": str}
@@ -187,6 +194,9 @@ def build_session(
     rate = float(cfg.get("capture.rate_hz", 60, types=(int, float)))  # type: ignore[arg-type]
     if not 1 <= rate <= 250:
         raise InputError(f"{cfg.path}: key 'capture.rate_hz' must be 1..250, found {rate}")
+    texture_every = cfg.get("capture.texture_every", None, types=int)
+    if texture_every is not None and texture_every < 2:
+        raise InputError(f"{cfg.path}: key 'capture.texture_every' must be at least 2 frames, found {texture_every}")
     depth_range = depth_range_field(cfg.get("depth_range_mm", None), f"{cfg.path}: key 'depth_range_mm'")
 
     cam_name, cam_opts = rig_driver(cfg, "camera", CAMERAS)
@@ -201,7 +211,9 @@ def build_session(
                 "(its projector may be a real window the virtual camera watches)"
             )
         window = None if proj_name == "sim" else (proj_name, proj_opts)
-        return _sim_session(cfg, scheme, opts, rate, depth_range, sim_overrides or {}, window)
+        session = _sim_session(cfg, scheme, opts, rate, depth_range, sim_overrides or {}, window)
+        session.texture_every = texture_every
+        return session
 
     # Real hardware: the projector's size fixes the pattern size; the calibration comes from the config.
     cal_path = cfg.get("calibration", types=str)
@@ -232,6 +244,8 @@ def build_session(
 
     rng = tuple(depth_range) if depth_range else None
     session = Session(cfg, scheme, patterns, calibration, rng, rate, make_devices, opts)  # type: ignore[arg-type]
+    session.calibration_source = str(Path(cal_file).resolve())
+    session.texture_every = texture_every
     session.frame_dtype = camera_frame_dtype(cam_opts.get("pixel_format"))
     session.mosaic = camera_mosaic(cam_opts.get("pixel_format"))
     session.chroma, session.notices = chroma, notices
@@ -342,6 +356,7 @@ def open_recorder(session: Session, folder: str | os.PathLike, png_level: int = 
         extra={"rig": str(session.config.path)},
         png_level=png_level,
         mosaic=session.mosaic,
+        texture=True,  # (texture frames may come: every N frames, on a snapshot or on demand)
     )
     return Recorder(writer)
 
@@ -352,27 +367,60 @@ def describe(session: Session) -> str:
     return "the virtual rig" if session.sim is not None else str(session.config.path if session.config else "?")
 
 
-def save_result(result: LiveResult, processor: LiveDecoder, out: str | os.PathLike) -> Path:
-    """Depth TIFF, PLY, stripe pseudo-colour, depth preview and camera PNGs of one result (all or nothing)."""
+def save_result(
+    result: LiveResult, processor: LiveDecoder, out: str | os.PathLike, calibration_source: str | None = None
+) -> Path:
+    """Depth TIFF and 16-bit PNG, PLY with normals, stripe pseudo-colour, depth preview, camera PNGs, the calibration
+    and the scan.yaml sidecar of one result (all or nothing)."""
     from app.fsutil import atomic_directory
 
     out = Path(out)
     with atomic_directory(out) as tmp:
-        write_result_files(result, processor, tmp)
+        write_result_files(result, processor, tmp, calibration_source=calibration_source)
     return out
 
 
-def write_result_files(result: LiveResult, processor: LiveDecoder, folder: Path, stem: str = "") -> None:
+def write_result_files(
+    result: LiveResult, processor: LiveDecoder, folder: Path, stem: str = "", calibration_source: str | None = None
+) -> None:
     from app import export
     from app.decode.mosaic import to_rgb
+    from app.normals import point_normals
+    from app.scan_info import CALIBRATION_COPY, live_scan_info
     from core.imageio import write_rgb
+    from core.scan_sidecar import write_scan_info
 
-    export.write_depth_tiff(folder / f"{stem}depth.tiff", result.depth)
-    write_rgb(folder / f"{stem}stripes.png", export.stripe_colours(result.stripes.stripe, result.stripes.period))
-    write_rgb(
-        folder / f"{stem}depth_preview.png",
-        export.depth_preview(result.depth, processor.triangulator.depth_range_mm),
-    )
+    files = {
+        "depth": f"{stem}depth.tiff",
+        "depth_png": f"{stem}depth.png",
+        "cloud": f"{stem}cloud.ply",
+        "stripes": f"{stem}stripes.png",
+        "preview": f"{stem}depth_preview.png",
+    }
+    export.write_depth_tiff(folder / files["depth"], result.depth)
+    export.write_depth_png16(folder / files["depth_png"], result.depth)
+    write_rgb(folder / files["stripes"], export.stripe_colours(result.stripes.stripe, result.stripes.period))
+    write_rgb(folder / files["preview"], export.depth_preview(result.depth, processor.triangulator.depth_range_mm))
     for p, f in enumerate(result.frameset.frames):
         write_rgb(folder / f"{stem}camera_p{p}.png", to_rgb(f.image, f.mosaic))
-    export.write_ply(folder / f"{stem}cloud.ply", processor.triangulator.points(result.depth, result.image))
+    texture = result.texture
+    if texture is not None:
+        files["texture"] = f"{stem}texture.png"
+        write_rgb(folder / files["texture"], to_rgb(texture.image, texture.mosaic))
+    cloud = processor.triangulator.points(result.depth, result.colour_image)
+    cloud.normals = point_normals(result.depth, processor.triangulator.ray)
+    export.write_ply(folder / files["cloud"], cloud)
+    processor.calibration.save(folder / f"{stem}{CALIBRATION_COPY}")
+    info = live_scan_info(
+        processor.scheme,
+        result.frameset.frames,
+        result.frameset.arrival_ns,
+        files,
+        processor.calibration,
+        calibration_source,
+        export.DEPTH_PNG_SCALE,
+        texture,
+    )
+    if stem:
+        info = dataclasses.replace(info, calibration=f"{stem}{CALIBRATION_COPY}")
+    write_scan_info(folder / f"{stem}scan.yaml", info)

@@ -177,6 +177,9 @@ def _extend_outside(nodes: np.ndarray, inside: np.ndarray) -> np.ndarray:
 class PointCloud:
     xyz: np.ndarray  # (N, 3) float32 mm, camera coordinates
     rgb: np.ndarray  # (N, 3) uint8
+    normals: np.ndarray | None = (
+        None  # (N, 3) float32 unit normals facing the camera, 0 0 0 = none; None = not computed
+    )
 
 
 class Triangulator:

@@ -12,7 +12,8 @@ It **orbits slowly by itself** (yaw +-30 degrees, 8 s period) until an **arrow k
 (left/right = yaw, up/down = pitch, 10 degrees a press); Home returns to the camera's view and
 the orbit; c switches the point colours between depth and camera.
 
-Keys: space = snapshot (depth TIFF + PLY + PNGs into snapshot-NNN/), r = start/stop recording a
+Keys: space = snapshot (depth TIFF + PNG16 + PLY + PNGs + scan.yaml into snapshot-NNN/, coloured by a texture frame
+taken for it), t = take a white-light texture frame now, r = start/stop recording a
 dump (rec-YYYYmmdd-HHMMSS/), m = switch scheme (two-shot -> one-shot -> graycode), q / Esc = quit;
 closing the window quits too. A device fault ends the session with its message on the terminal.
 
@@ -53,6 +54,10 @@ TURN_DEG = 10.0
 
 
 # ------------------------------------------------------------------------------------ pure images
+
+
+# A snapshot waits at most this long for the texture frame it asked for (then saves without it, and says so).
+SNAPSHOT_TEXTURE_WAIT_S = 1.0
 
 
 def stripe_colours(stripes: StripeMap) -> np.ndarray:
@@ -208,6 +213,7 @@ class LiveView:
         self.recorder: Any = None
         self.record_msgs: list[str] = []
         self.snapshots = 0
+        self._snapshot_after: tuple[float, int | None] | None = None  # (deadline, texture frame id before) pending
         self.message = ""
         self.show_now: Any = None  # shows a status text at once (set while the window is open)
         self.status_text = ""  # what the status line shows
@@ -261,16 +267,41 @@ class LiveView:
 
     # -- keys ------------------------------------------------------------------------------
     def snapshot(self) -> None:
-        from app.session import save_result
-
+        """Ask for a texture frame, then save the first result it colours (poll_snapshot), or the newest one after
+        SNAPSHOT_TEXTURE_WAIT_S without it."""
         res = self.pipe.latest
         if res is None:
             self.message = "snapshot: no depth map yet"
             return
+        if self.pipe.request_texture():
+            before = self.pipe.latest_texture.frame_id if self.pipe.latest_texture is not None else None
+            self._snapshot_after = (time.monotonic() + SNAPSHOT_TEXTURE_WAIT_S, before)
+            self.message = "snapshot: taking a texture frame"
+            return
+        self._save_snapshot(res)
+
+    def poll_snapshot(self) -> None:
+        """Save the pending snapshot once a result coloured by a newer texture frame is in (or at its deadline)."""
+        if self._snapshot_after is None:
+            return
+        deadline, before = self._snapshot_after
+        res = self.pipe.latest
+        fresh = res is not None and res.texture is not None and res.texture.frame_id != before
+        if fresh or time.monotonic() >= deadline:
+            self._snapshot_after = None
+            if res is not None:
+                self._save_snapshot(res)
+
+    def request_texture(self) -> None:
+        self.message = "texture frame requested" if self.pipe.request_texture() else "texture: the loop is not running"
+
+    def _save_snapshot(self, res: Any) -> None:
+        from app.session import save_result
+
         while Path(f"snapshot-{self.snapshots:03d}").exists():
             self.snapshots += 1
-        out = save_result(res, self.processor, f"snapshot-{self.snapshots:03d}")
-        self.message = f"snapshot written to {out}"
+        out = save_result(res, self.processor, f"snapshot-{self.snapshots:03d}", self.session.calibration_source)
+        self.message = f"snapshot written to {out}" + ("" if res.texture is not None else " (no texture frame)")
 
     def toggle_recording(self) -> None:
         from app.session import open_recorder
@@ -321,6 +352,8 @@ class LiveView:
             self.snapshot()
         elif symbol == key.R:
             self.toggle_recording()
+        elif symbol == key.T:
+            self.request_texture()
         elif symbol == key.M:
             self.switch_scheme()
         elif symbol == key.C:
@@ -404,6 +437,7 @@ class LiveView:
             nonlocal last
             t0 = time.perf_counter()
             win.switch_to()  # the projector window's show may have made its own GL context current
+            self.poll_snapshot()
             res = self.pipe.take_latest()
             if res is not None:
                 last = res

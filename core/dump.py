@@ -27,11 +27,17 @@ from core.mosaic import mosaic_name
 from core.paths import resolves_inside
 from core.pattern_export import read_patterns, read_patterns_meta, write_patterns
 from core.patterns import PatternSet
+from core.wallclock import now_ns, parse_wall_clock, wall_clock_iso
 from core.yamlfile import parse_yaml
 
 FORMAT = "slscan-dump"
 VERSION = 1
 INDEX = "dump.yaml"
+# header key: the host's wall clock when the writer started (sidecars date a frame set from it and the camera's time)
+RECORDED_KEY = "recorded_utc"
+# header key: the pattern tag of a white-light texture frame, always len(images) of patterns.yaml: one past the
+# patterns, so a reader that does not know it sees a tag outside the scheme and never pairs the frame
+TEXTURE_KEY = "texture_pattern"
 
 # PNG settings by level, measured on a 640x480 stripe frame with sensor noise (one core, this machine):
 #   0: stored, no filter       ~1 ms/frame, 900 KB  (the live default: keeps up at 60 Hz with room)
@@ -85,8 +91,10 @@ class DumpWriter:
         png_level: int = 1,
         pattern_files: dict[str, bytes] | None = None,
         mosaic: str | None = None,
+        texture: bool = False,
     ) -> None:
-        """pattern_files: the files of `patterns`' export, already encoded (the poses of a calibration
+        """texture: frames tagged len(patterns) are white-light texture frames (header texture_pattern).
+        pattern_files: the files of `patterns`' export, already encoded (the poses of a calibration
         capture share one pattern set: encoding its PNGs again for every pose cost ~2 s a pose). mosaic: the
         Bayer mosaic of a single-chip camera's raw frames, stored as they are, one channel (core/mosaic.py)."""
         self.mosaic = mosaic_name(mosaic, "mosaic")
@@ -115,6 +123,10 @@ class DumpWriter:
             header["depth_range_mm"] = [float(depth_range_mm[0]), float(depth_range_mm[1])]
         if self.mosaic is not None:
             header["mosaic"] = self.mosaic
+        header[RECORDED_KEY] = wall_clock_iso(now_ns())
+        self.texture_pattern = self.n_patterns if texture else None
+        if texture:
+            header[TEXTURE_KEY] = self.n_patterns
         header.update(extra or {})
         self._index = open(self.folder / INDEX, "w", encoding="utf-8")  # kept open: one line appended per frame
         self._index.write(yaml.safe_dump(header, sort_keys=False) + "frames:\n")
@@ -124,7 +136,7 @@ class DumpWriter:
         self._last_id: int | None = None
 
     def add(self, image: np.ndarray, pattern: int, frame_id: int, timestamp_ns: int) -> FrameRecord:
-        if not 0 <= pattern < self.n_patterns:
+        if not 0 <= pattern < self.n_patterns and pattern != self.texture_pattern:
             raise ValueError(f"pattern index {pattern} outside 0..{self.n_patterns - 1}")
         if self._last_ts is not None and timestamp_ns < self._last_ts:
             raise ValueError(f"timestamp {timestamp_ns} ns goes back in time (last {self._last_ts} ns)")
@@ -224,6 +236,39 @@ class Dump:
         """The Bayer mosaic of the raw one-channel frames, None for RGB frames (checked by read_dump)."""
         return self.meta.get("mosaic")
 
+    @property
+    def recorded_ns(self) -> int | None:
+        """The wall clock (ns since the epoch) when the writer started, None in a dump that does not say it."""
+        v = self.meta.get(RECORDED_KEY)
+        return None if v is None else parse_wall_clock(v, f"{self.folder / INDEX}: field '{RECORDED_KEY}'")
+
+    @property
+    def texture_pattern(self) -> int | None:
+        """The tag of white-light texture frames (checked by read_dump), None in a dump that has none."""
+        return self.meta.get(TEXTURE_KEY)
+
+    def texture_indices(self) -> list[int]:
+        """The indices among frames of the texture frames, in capture order (the tag checked against patterns.yaml:
+        it must be one past the patterns, so that no frame set can take a texture frame)."""
+        tag = self.texture_pattern
+        if tag is None:
+            return []
+        n = len(self.patterns_meta()["images"])
+        if tag != n:
+            raise InputError(
+                f"{self.folder / INDEX}: field '{TEXTURE_KEY}' is {tag} but {self.patterns_folder / 'patterns.yaml'} "
+                f"has {n} images: it must be {n}, one past the patterns"
+            )
+        return [i for i, f in enumerate(self.frames) if f.pattern == tag]
+
+    def wall_clock_ns(self, i: int) -> int | None:
+        """Frame i's time on the wall clock: the recording's start plus the camera time since the first frame (the
+        camera's clock may be its own: only differences of its timestamps are used), None without recorded_utc."""
+        start = self.recorded_ns
+        if start is None or not self.frames:
+            return None
+        return start + self.frames[i].timestamp_ns - self.frames[0].timestamp_ns
+
     def load_frame(self, i: int) -> np.ndarray:
         """Frame i: RGB (H, W, 3), or the raw Bayer frame (H, W) in a dump with a mosaic."""
         grey = self.mosaic is not None
@@ -260,6 +305,11 @@ def read_dump(folder: str | os.PathLike) -> Dump:
         if not isinstance(meta["mosaic"], str):
             raise InputError(f"{path}: field 'mosaic' must be one of RGGB, GRBG, GBRG, BGGR, found {meta['mosaic']!r}")
         meta["mosaic"] = mosaic_name(meta["mosaic"], f"{path}: field 'mosaic'")
+    if meta.get(RECORDED_KEY) is not None:
+        parse_wall_clock(meta[RECORDED_KEY], f"{path}: field '{RECORDED_KEY}'")
+    tag = meta.get(TEXTURE_KEY)
+    if tag is not None and (not isinstance(tag, int) or isinstance(tag, bool) or tag < 1):
+        raise InputError(f"{path}: field '{TEXTURE_KEY}' must be the number of pattern images, found {tag!r}")
     raw = meta.get("frames") or []
     if not isinstance(raw, list):
         raise InputError(f"{path}: field 'frames' must be a list")
@@ -440,10 +490,14 @@ def _recover_by_content(dump: Dump, listed: list[FrameRecord], path: Path) -> Fr
     if not listed or path.is_symlink() or not path.is_file() or not _complete_png(path):
         return None
     n = len(dump.patterns_meta()["images"])
+    patterns = [r for r in listed if r.pattern < n]  # (texture frames, tagged n, follow no cycle)
+    if not patterns or listed[-1].pattern >= n:
+        return None
     due = (listed[-1].pattern + 1) % n
     newest: dict[int, int] = {}
     for i, r in enumerate(listed):
-        newest[r.pattern] = i
+        if r.pattern < n:
+            newest[r.pattern] = i
     try:
         grey = dump.mosaic is not None
         image = read_rgb(path, grey=grey, colour=not grey).astype(np.float32)
@@ -465,7 +519,7 @@ def _recover_by_content(dump: Dump, listed: list[FrameRecord], path: Path) -> Fr
         if best != due or scores[best] < MIN_CONTENT_MATCH:
             return None
     stamps = [r.timestamp_ns for r in listed]
-    step = int(np.median(np.diff(stamps))) if len(stamps) > 1 else 0
+    step = int(np.median(np.diff(stamps))) if len(stamps) > 1 else 0  # (texture frames are camera frames too)
     last = listed[-1]
     name = f"frames/{path.name.removesuffix('.tmp.png')}.png"
     return FrameRecord(name, due, last.frame_id + 1, last.timestamp_ns + step, recovered=RECOVERED_BY_CONTENT)

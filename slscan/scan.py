@@ -6,7 +6,7 @@ from functools import cached_property
 
 import numpy as np
 
-from slscan.normals import grid_normals, grid_points
+from app.normals import grid_normals, grid_points
 
 
 class Scan:

@@ -184,6 +184,8 @@ class Scanner:
     def _scan(self, result: LiveResult) -> Scan:
         frames = [f.image for f in result.frameset.frames]
         image = frames[0] if len(frames) != 2 else average_frames_of(frames[0], frames[1])  # stripes cancel
+        if result.texture is not None:  # a white-light texture frame came before (capture.texture_every): its colour
+            image = result.colour_image
         return Scan(
             result.depth,
             result.stripes.column,

@@ -29,7 +29,7 @@ from app.cluster.manifest import (
 from app.cluster.summary import Failure, RunSummary
 from app.cluster.task import ChunkResult, decode_chunk
 from app.cluster.zarr_depth import create_store, require_zarr
-from app.offline_decode import DumpPlan, output_subfolders, plan_dump
+from app.offline_decode import DumpPlan, output_subfolders, plan_dump, write_calibration_copy
 from core.errors import InputError
 
 
@@ -45,6 +45,7 @@ def run_on_cluster(args: argparse.Namespace) -> int:
             motion=getattr(args, "motion", "auto"),
             png16=args.png16,
             preview=args.preview,
+            depth_scale=args.depth_scale,
         )
         for d in args.dump
     ]
@@ -76,6 +77,7 @@ def run_on_cluster(args: argparse.Namespace) -> int:
             "motion": getattr(args, "motion", "auto"),
             "png16": bool(args.png16),
             "preview": bool(args.preview),
+            "depth_scale": float(args.depth_scale),
             "zarr": bool(args.zarr),
         },
     )
@@ -85,6 +87,8 @@ def run_on_cluster(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     with open_client(args.scheduler, args.connect_timeout or DEFAULT_CONNECT_TIMEOUT_S) as client:
         create_out(out, manifest, subs, resumed)
+        for plan, sub in zip(plans, subs, strict=True):
+            write_calibration_copy(plan, out / sub)
         if args.zarr:
             for plan, sub, shape in zip(plans, subs, shapes, strict=True):
                 create_store(out / sub, plan.dump, plan.sets, shape, size)

@@ -9,9 +9,18 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from app.argtypes import non_negative_int, positive_float, positive_int
+from app.export import DEPTH_PNG_SCALE
 from app.framesets import FrameIndexSet
 from app.fsutil import atomic_directory
-from app.offline_decode import DecodeSettings, DumpPlan, SetDecoder, output_subfolders, plan_dump, quiet_opencv
+from app.offline_decode import (
+    DecodeSettings,
+    DumpPlan,
+    SetDecoder,
+    output_subfolders,
+    plan_dump,
+    quiet_opencv,
+    write_calibration_copy,
+)
 from core.errors import InputError
 
 HELP = "decode a frame dump offline: depth TIFF, PLY cloud and stripe PNG per frame set"
@@ -69,7 +78,18 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="two-shot: auto (default) decodes a pair's newest frame alone where the scene moved since the frame "
         "before the pair; off decodes every pair from the sign of its difference",
     )
-    p.add_argument("--png16", action="store_true", help="also write depth_NNNNNN.png (16-bit, 0.1 mm units)")
+    p.add_argument(
+        "--png16",
+        action="store_true",
+        help="also write depth_NNNNNN.png (16-bit; units per metre: --depth-scale, stated in scan_NNNNNN.yaml)",
+    )
+    p.add_argument(
+        "--depth-scale",
+        type=positive_float,
+        default=DEPTH_PNG_SCALE,
+        metavar="S",
+        help=f"units per metre of --png16 (Open3D's depth_scale; default {DEPTH_PNG_SCALE:g} = 0.1 mm, 1000 = mm)",
+    )
     p.add_argument("--preview", action="store_true", help="also write preview_NNNNNN.png (colourised depth)")
     p.add_argument(
         "--scheduler",
@@ -120,6 +140,7 @@ def run(args: argparse.Namespace) -> int:
             motion=getattr(args, "motion", "auto"),
             png16=args.png16,
             preview=args.preview,
+            depth_scale=args.depth_scale,
         )
         for d in args.dump
     ]
@@ -127,6 +148,7 @@ def run(args: argparse.Namespace) -> int:
     with atomic_directory(args.out) as tmp:
         for plan, sub in zip(plans, subfolders, strict=True):
             (tmp / sub).mkdir(exist_ok=True)
+            write_calibration_copy(plan, tmp / sub)
             _decode_locally(plan, tmp / sub, args.workers, args.out if sub == "." else str(Path(args.out) / sub))
     return 0
 
@@ -172,7 +194,10 @@ def _decode_locally(plan: DumpPlan, tmp: Path, workers_asked: int, shown: str) -
     skipped = (
         f", {stats.gaps} frame_id gap(s), {stats.bad_tags} bad tag(s) skipped" if stats.gaps or stats.bad_tags else ""
     )
-    print(f"decoded {len(sets)} {plan.dump.scheme} frame set(s) from {plan.n_frames} frames to {shown}{skipped}")
+    textured = f", coloured from {stats.textures} texture frame(s)" if stats.textures else ""
+    print(
+        f"decoded {len(sets)} {plan.dump.scheme} frame set(s) from {plan.n_frames} frames to {shown}{skipped}{textured}"
+    )
 
 
 def _progress(done: int, total: int) -> None:

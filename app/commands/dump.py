@@ -22,6 +22,7 @@ examples:
   slscan dump --config rig.yaml --frames 120 --out rec2/ --png-level 1
   slscan decode rec/ --out depth/                     # the dump carries its calibration and depth range
   slscan dump --repair rec/                           # after a crash: index = the complete frames
+  slscan dump --frames 600 --texture-every 60 --out rec3/   # and a white-light texture frame every second
 
 Only frames whose pattern tag is certain are written (the tag comes from the trigger count and the
 flip log, then the pixels must alternate as the patterns do): with two-shot every frame from the
@@ -49,6 +50,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--timeout", type=positive_float, default=2.0, metavar="S", help="camera timeout in seconds (default 2)"
     )
+    p.add_argument(
+        "--texture-every",
+        type=positive_int,
+        metavar="N",
+        help="record a white-light texture frame every N frames (tagged texture_pattern; default: the config's "
+        "capture.texture_every, else none)",
+    )
     p.add_argument("--repair", metavar="DUMP", help="repair a dump whose writer was killed, and exit")
     p.set_defaults(func=run)
 
@@ -71,6 +79,10 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{out}: already exists; a dump is never overwritten (choose another --out)")
 
     session = build_session(args.config, scheme=args.scheme)
+    if args.texture_every is not None:
+        if args.texture_every < 2:
+            raise InputError(f"--texture-every {args.texture_every}: must be at least 2 frames")
+        session.texture_every = args.texture_every
     recorder = open_recorder(session, args.out, args.png_level)
     # Devices open on this thread, which serves a projector window's calls while it waits (as `live`).
     hand_over = HandOver()

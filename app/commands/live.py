@@ -30,8 +30,8 @@ examples:
   slscan live --headless --frames 300 --record rec/   # and record the checked frames as a dump
   slscan live --publish tcp://127.0.0.1:5556    # and stream every scan's depth (slscan.Subscriber reads it)
 
-keys in the window: space = snapshot (depth TIFF, PLY, PNGs), r = start/stop recording,
-m = switch scheme, q / Esc = quit.
+keys in the window: space = snapshot (depth TIFF and PNG16, PLY, PNGs, scan.yaml; coloured by a texture frame
+taken for it), t = take a white-light texture frame, r = start/stop recording, m = switch scheme, q / Esc = quit.
 Without a display, `slscan live` says so and runs headless.
 """
 
@@ -53,6 +53,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--timeout", type=positive_float, default=2.0, metavar="S", help="camera timeout in seconds (default 2)"
     )
+    p.add_argument(
+        "--texture-every",
+        type=positive_int,
+        metavar="N",
+        help="show a white-light texture frame every N frames, which colours the clouds after it (default: the "
+        "config's capture.texture_every; else only on a snapshot or the t key)",
+    )
     add_publish_arguments(p)
     p.set_defaults(func=run)
 
@@ -69,6 +76,10 @@ def run(args: argparse.Namespace) -> int:
     publisher = open_publisher(args)  # bound before the session starts: a bad address is said first
     try:
         session = build_session(args.config, scheme=args.scheme)
+        if args.texture_every is not None:
+            if args.texture_every < 2:
+                raise InputError(f"--texture-every {args.texture_every}: must be at least 2 frames")
+            session.texture_every = args.texture_every
         if not args.headless:
             from app.view import run_view
 
@@ -103,6 +114,7 @@ def run_headless(session: Session, args: argparse.Namespace, label: str = "live"
         max_frames=frames,
         recorder=recorder,
         on_result=result_sink(args, processor),
+        texture_at_end=True,  # (the saved last scan: coloured by a texture frame taken near the end)
     )
     count = "every frame" if frames >= 10**12 else f"{frames} frames"
     print(f"slscan {label}: {session.scheme} on {describe(session)}, {count}", file=sys.stderr)
@@ -139,7 +151,7 @@ def run_headless(session: Session, args: argparse.Namespace, label: str = "live"
         if pipe.capture.tagged > pipe.capture.confirmed:
             print(f"{pipe.capture.tagged - pipe.capture.confirmed} tagged frame(s) next to a break not recorded")
     if pipe.latest is not None:
-        save_result(pipe.latest, processor, out)
+        save_result(pipe.latest, processor, out, session.calibration_source)
         print(f"last scan (frames {', '.join(map(str, pipe.latest.frameset.frame_ids))}) written to {out}")
     else:
         print("no depth map was produced: nothing written")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 import numpy as np
 
@@ -55,7 +56,8 @@ def replay_session(dump_path: str, calibration: str | None = None, realtime: boo
         raise InputError(f"{dump_path}: the dump carries no calibration; give one with --calibration FILE")
     patterns = dump.patterns()
     n = len(patterns)
-    bad = [i for i, f in enumerate(dump.frames) if f.pattern >= n]
+    texture = n if dump.texture_indices() else None  # (checks the dump's texture tag: frames tagged n are texture)
+    bad = [i for i, f in enumerate(dump.frames) if f.pattern >= n and f.pattern != texture]
     if bad:
         raise InputError(f"{dump_path}/dump.yaml: frames[{bad[0]}].pattern is outside 0..{n - 1}")
 
@@ -74,6 +76,9 @@ def replay_session(dump_path: str, calibration: str | None = None, realtime: boo
         if dtype in (np.uint8, np.uint16):  # (other frames fail set by set, each with its file named)
             session.frame_dtype = dtype
     session.mosaic = dump.mosaic
+    session.calibration_source = str(
+        Path(calibration).resolve() if calibration else dump.folder / dump.meta["calibration"]
+    )
     return session
 
 

@@ -194,15 +194,20 @@ class FrameSetDecoder:
         where: str = "frame set",
         newest: int | None = None,
         previous: np.ndarray | None = None,
+        texture: np.ndarray | None = None,
     ) -> DecodedSet:
         """frames in pattern order (frames[p] saw pattern p); newest, previous: see stripes_and_depth (without them
-        the order in time does not matter)."""
+        the order in time does not matter). texture: a white-light frame (the object's own colour) to colour the
+        cloud with; without it the set's own frames colour it."""
         self.check_frames(frames, where)
         if previous is not None:
             self.check_frames([previous] * self.shots, f"{where} (previous frame)")
-        frames, previous = self.rgb(frames), self.rgb_frame(previous)
+        if texture is not None:
+            self.check_frames([texture] * self.shots, f"{where} (texture frame)")
+        frames, previous, texture = self.rgb(frames), self.rgb_frame(previous), self.rgb_frame(texture)
         sm, depth = self.stripes_and_depth(frames, newest, previous)
-        texture = average_frames_of(frames[0], frames[1]) if self.kind.shots == 2 else frames[0]  # stripes cancel
+        if texture is None:  # two-shot: a pair's mean, where the stripes cancel
+            texture = average_frames_of(frames[0], frames[1]) if self.kind.shots == 2 else frames[0]
         if not sm.valid.any():
             warnings.warn(f"{where}: nothing decoded: {self.empty_reason()}", EmptyResultWarning, stacklevel=2)
         cloud = None

@@ -11,6 +11,7 @@ import pytest
 from app.capture import CaptureLoop
 from app.live_pipeline import LiveDecoder
 from app.session import Session, build_session
+from app.texture import with_texture
 from drivers.sim.devices import SimBench, SimDevices, devices_from_bench, parse_faults
 
 SMALL = {"camera_size": [320, 240]}
@@ -26,7 +27,7 @@ def fresh_devices(session: Session, faults: list | None = None, *, stepped: bool
     """New camera/projector/trigger over the session's rig, the patterns loaded, faults as in config sim.faults."""
     bench = SimBench(session.sim.rig, stepped=stepped, faults=parse_faults(faults or []), seed=seed)
     dev = devices_from_bench(bench)
-    dev.projector.load(session.patterns.images)
+    dev.projector.load(with_texture(session.patterns))  # (as Session.make_loop: the white texture frame last)
     return dev
 
 

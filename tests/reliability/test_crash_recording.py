@@ -41,6 +41,16 @@ def small_config(tmp_path_factory):
     return path
 
 
+@pytest.fixture(scope="module")
+def textured_config(small_config):
+    """small_config with a white-light texture frame every 7 frames (recorded with its tag)."""
+    data = yaml.safe_load(small_config.read_text())
+    data.setdefault("capture", {})["texture_every"] = 7
+    path = small_config.with_name("textured.yaml")
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
 def _entries(folder) -> int:
     try:
         return (folder / "dump.yaml").read_bytes().count(b"\n- {")
@@ -48,16 +58,20 @@ def _entries(folder) -> int:
         return 0
 
 
-def _kill_runs(config, tmp_path, rng) -> list:
-    """Start KILLS `slscan dump` processes (AT_ONCE at a time) and kill -9 each at its random point."""
+def _kill_runs(configs, tmp_path, rng) -> list:
+    """Start KILLS `slscan dump` processes (AT_ONCE at a time, taking the configs in turn) and kill -9 each at its
+    random point."""
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    todo = [(tmp_path / f"rec{k}", int(rng.integers(1, 60)), float(rng.uniform(0, 0.017))) for k in range(KILLS)]
+    todo = [
+        (tmp_path / f"rec{k}", int(rng.integers(1, 60)), float(rng.uniform(0, 0.017)), configs[k % len(configs)])
+        for k in range(KILLS)
+    ]
     running: list = []
     done: list = []
     deadline = time.monotonic() + 150
     while (todo or running) and time.monotonic() < deadline:
         while todo and len(running) < AT_ONCE:
-            folder, target, extra = todo.pop()
+            folder, target, extra, config = todo.pop()
             cmd = [sys.executable, "-m", "app.cli", "dump", "--config", str(config), "--frames", "100000"]
             proc = subprocess.Popen(
                 [*cmd, "--out", str(folder)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env
@@ -79,13 +93,15 @@ def _kill_runs(config, tmp_path, rng) -> list:
 
 
 @pytest.mark.slow  # 30-60 s on the shared 2-core machine: 12 real `slscan dump` processes
-def test_kill_9_of_slscan_dump_at_random_points(small_config, tmp_path, rig_session):
+def test_kill_9_of_slscan_dump_at_random_points(small_config, textured_config, tmp_path, rig_session):
     session, _ = rig_session
     dev = fresh_devices(session)
-    rig, prepared = dev.camera.bench.rig, dev.camera.bench.patterns
+    rig, prepared = dev.camera.bench.rig, dev.camera.bench.patterns  # (the patterns, then the white texture frame)
     refs = [rig.render(prepared[p]).astype(np.float32) for p in range(len(prepared))]
-    done = _kill_runs(small_config, tmp_path, np.random.default_rng(8))
+    done = _kill_runs([small_config, textured_config], tmp_path, np.random.default_rng(8))
     assert len(done) == KILLS
+    textures = [len(read_dump(folder).texture_indices()) for folder, _, _ in done]
+    assert sum(textures) >= 3, textures  # the textured half recorded texture frames (their pixels: checked below)
     for folder, target, code in done:
         assert code == -signal.SIGKILL, (folder, code)  # killed, not exited on its own
         dump = read_dump(folder)

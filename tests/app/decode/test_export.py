@@ -52,3 +52,28 @@ def test_depth_preview_black_where_none():
     d = np.array([[0, 500, 900]], np.float32)
     p = depth_preview(d, (500, 900))
     assert p[0, 0].tolist() == [0, 0, 0] and p[0, 1].tolist() != p[0, 2].tolist()
+
+
+def test_ply_round_trip_with_normals_in_open3d_layout(tmp_path):
+    rng = np.random.default_rng(2)
+    n = rng.normal(size=(500, 3)).astype(np.float32)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    n[:10] = 0  # (no normal)
+    cloud = PointCloud(rng.normal(0, 500, (500, 3)).astype(np.float32), rng.integers(0, 256, (500, 3), np.uint8), n)
+    write_ply(tmp_path / "n.ply", cloud)
+    head = (tmp_path / "n.ply").read_bytes()[:400].decode("ascii", "replace")
+    props = [line.split()[-1] for line in head.splitlines() if line.startswith("property")]
+    assert props == ["x", "y", "z", "nx", "ny", "nz", "red", "green", "blue"]
+    back = read_ply(tmp_path / "n.ply")
+    np.testing.assert_array_equal(back.normals, n)
+    np.testing.assert_array_equal(back.xyz, cloud.xyz)
+    np.testing.assert_array_equal(back.rgb, cloud.rgb)
+
+
+def test_depth_png16_scale_is_units_per_metre_and_out_of_range_is_none(tmp_path):
+    d = np.array([[0.0, 123.4, 65535.0, 70000.0, np.nan]], np.float32)
+    write_depth_png16(tmp_path / "mm.png", d, depth_scale=1000)  # Open3D's default: mm
+    back = read_rgb(tmp_path / "mm.png")[..., 0]
+    assert back.tolist() == [[0, 123, 65535, 0, 0]]
+    write_depth_png16(tmp_path / "t.png", np.array([[6600.0]], np.float32))  # beyond 6.5535 m at 0.1 mm
+    assert read_rgb(tmp_path / "t.png")[..., 0].tolist() == [[0]]

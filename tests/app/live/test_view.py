@@ -40,7 +40,7 @@ SCRIPT = textwrap.dedent(
     Session.processor = processor_spy
     plan = [("result", None), ("wait", 0.3), ("points", None), ("press", key.LEFT), ("wait", 0.3), ("points", None),
             ("wait", 0.3), ("points", None),
-            ("press", key.SPACE), ("press", key.R), ("wait", 0.6), ("press", key.R),
+            ("press", key.SPACE), ("wait", 0.8), ("wait", 0.05), ("press", key.R), ("wait", 0.6), ("press", key.R),
             ("press", key.M), ("wait", 1.0), ("press", key.Q)]
     state = {"i": 0, "until": 0.0}
     palette = {tuple(c) for c in _TURBO} | {(0, 0, 0)}
