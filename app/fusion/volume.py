@@ -94,5 +94,6 @@ class Volume:
 
     def mesh(self) -> object:
         """The zero surface (marching cubes) as a legacy TriangleMesh with vertex colours."""
-        m = self.grid.extract_triangle_mesh(weight_threshold=self.min_weight)
+        # weights count scans (1 each), and Open3D keeps a voxel only above the threshold: half a scan below
+        m = self.grid.extract_triangle_mesh(weight_threshold=self.min_weight - 0.5)
         return m.to_legacy()
