@@ -129,9 +129,10 @@ def run(args: argparse.Namespace) -> list[dict]:
     from app.fusion.open3d_import import open3d
     from core.patterns import parse_size
 
+    # numba's threads first: Open3D loads an older TBB, with which numba would then refuse its TBB layer (a warning)
+    numba.set_num_threads(1)
     open3d()
     warnings.simplefilter("ignore", EmptyResultWarning)
-    numba.set_num_threads(1)
     scenes = [s for s in getattr(args, "fusion_scenes", ",".join(SCENES)).split(",") if s]
     size = parse_size(getattr(args, "fusion_size", "640x480"))
     frames = int(getattr(args, "fusion_frames", FRAMES))

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from app.argtypes import non_negative_int
+from app.argtypes import non_negative_int, volume_mm
 from core.errors import InputError
 
 HELP = "fuse a dump's scans into one mesh: registration (ICP) and a TSDF volume; PLY + OBJ and the trajectory"
@@ -17,8 +17,8 @@ examples:
   slscan fuse tt/ --out model.ply                      # model.ply, model.obj, model.trajectory.csv
   slscan fuse rec/ --out m.ply --voxel-mm 1 --volume-mm=-80,80,-90,70,650,850 --save-partial
 
-Each sliding frame set is decoded, registered to the model built so far (point-to-plane then coloured
-ICP from the pose predicted by constant motion) and integrated into a TSDF volume. A scan that fails
+Each sliding frame set is decoded, registered to the model built so far (point-to-plane ICP, coarse
+then fine, from the pose predicted by constant motion) and integrated into a TSDF volume. A scan that fails
 the registration test is dropped (not integrated) and counted; more than --max-dropped in a row is
 lost tracking: an error, and with --save-partial the model built until then is written first.
 The working volume (camera mm) is what is kept of each scan: the dump's working_volume_mm (a
@@ -49,18 +49,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--motion", choices=("auto", "off"), default="auto", help="two-shot motion handling (as decode)")
     p.add_argument("--save-partial", action="store_true", help="on lost tracking, still write the model built so far")
     p.set_defaults(func=run)
-
-
-def _volume(text: str | None) -> tuple[float, ...] | None:
-    if text is None:
-        return None
-    try:
-        v = tuple(float(x) for x in text.split(","))
-    except ValueError:
-        v = ()
-    if len(v) != 6 or not all(v[i] < v[i + 1] for i in (0, 2, 4)):
-        raise InputError(f"--volume-mm {text!r}: expected X0,X1,Y0,Y1,Z0,Z1 in mm with X0 < X1, Y0 < Y1, Z0 < Z1")
-    return v
 
 
 def _progress(done: int, total: int) -> None:
@@ -96,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
     cal = Calibration.load(args.calibration) if args.calibration else dump.calibration()
     ply, _ = mesh_paths(args.out)
     trajectory = Path(args.trajectory) if args.trajectory else ply.with_suffix(".trajectory.csv")
-    options = FuseOptions(voxel, _volume(args.volume_mm), args.min_weight, args.max_dropped, args.motion)
+    options = FuseOptions(voxel, volume_mm(args.volume_mm), args.min_weight, args.max_dropped, args.motion)
     try:
         fuser = fuse_dump(dump, cal, options, _progress)
     except TrackingLostError as exc:

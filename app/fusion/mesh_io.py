@@ -18,6 +18,8 @@ def mesh_paths(out: str | Path) -> tuple[Path, Path]:
 def write_mesh(mesh: object, out: str | Path) -> tuple[Path, Path]:
     o3d = open3d()
     ply, obj = mesh_paths(out)
+    if len(mesh.triangles) == 0:
+        raise InputError(f"{ply}: the model has no surface yet (too few scans saw any part of it): nothing written")
     ply.parent.mkdir(parents=True, exist_ok=True)
     colours = mesh.has_vertex_colors()
     for path, ascii_ in ((ply, False), (obj, True)):

@@ -4,7 +4,8 @@ Poses map a scan's camera coordinates into the model's frame (the camera's at th
 The model the scans are registered to is a point map in that frame: one point (with its normal) per `map_voxel_mm`
 cell, taken from the first registered scan that reached the cell and never moved after (so the map stays anchored
 to the early scans and a full turn closes on them rather than on its own recent past). A scan is tried from the
-pose predicted by constant motion (the last pose times the last step), coarse then fine; it is accepted when
+pose predicted by constant motion (the last pose times the last step), point-to-plane coarse then fine (the fine
+stage coloured ICP with `colour`, off by default: docs/performance.md, "Whole models"); it is accepted when
 enough of its points found the map (fitness), they fit well (inlier RMSE) and the step from the prediction is
 plausible; otherwise it is dropped, the model is left as it was, and the prediction goes on from the last good
 pose.
