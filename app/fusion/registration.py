@@ -96,8 +96,6 @@ class Tracker:
         self.pose: np.ndarray | None = None  # the last accepted pose
         self.step = np.eye(4)  # the last accepted step, per scan
         self.since_ok = 1  # scans since the last accepted one
-        self._target = None
-        self._target_size = -1
 
     def prediction(self) -> np.ndarray:
         if self.pose is None:
@@ -114,12 +112,15 @@ class Tracker:
         pc.colors = o3d.utility.Vector3dVector(rgb)
         return pc
 
-    def _map_cloud(self) -> object:
-        # rebuilt only when the map has grown (Open3D builds its search tree from the target per call)
-        if self._target is None or self._target_size != len(self.map):
-            self._target = self._cloud(self.map.points, self.map.normals, self.map.colours)
-            self._target_size = len(self.map)
-        return self._target
+    def _map_cloud(self, pts: np.ndarray, init: np.ndarray) -> object:
+        """The map's points near the scan placed at `init` (its box, padded by twice the coarse distance): Open3D
+        builds its search tree from the target on every call, and the far side of the model is never matched."""
+        st = self.settings
+        P = pts @ init[:3, :3].T + init[:3, 3]
+        pad = 2.0 * st.coarse_mm
+        lo, hi = P.min(axis=0) - pad, P.max(axis=0) + pad
+        near = np.all((self.map.points >= lo) & (self.map.points <= hi), axis=1)
+        return self._cloud(self.map.points[near], self.map.normals[near], self.map.colours[near])
 
     def track(self, pts: np.ndarray, nrm: np.ndarray, rgb: np.ndarray) -> TrackResult:
         """Register a scan's camera-frame points (with normals toward the camera, colours 0..1); on success, extend
@@ -136,11 +137,12 @@ class Tracker:
             return TrackResult(False, self.prediction(), 0.0, 0.0, f"too few points ({len(pts)})")
         reg = self.o3d.pipelines.registration
         src = self._cloud(pts, nrm, rgb)
-        tgt = self._map_cloud()
         init = self.prediction()
+        tgt = self._map_cloud(pts, init)
+        coarse_src = self._cloud(pts[::3], nrm[::3], rgb[::3])  # a coarse step needs fewer points
         est = reg.TransformationEstimationPointToPlane(reg.TukeyLoss(k=st.coarse_mm))
         r = reg.registration_icp(
-            src, tgt, st.coarse_mm, init, est, reg.ICPConvergenceCriteria(max_iteration=st.coarse_iterations)
+            coarse_src, tgt, st.coarse_mm, init, est, reg.ICPConvergenceCriteria(max_iteration=st.coarse_iterations)
         )
         fine = reg.ICPConvergenceCriteria(relative_fitness=1e-7, relative_rmse=1e-7, max_iteration=st.fine_iterations)
         if st.colour:

@@ -41,7 +41,8 @@ def test_true_points_of_a_moving_frame_lie_on_the_sample_mapped_by_the_true_pose
     near, plane = _distances(obj[::6], sample)
     on_object = near < 1.0  # the object's pixels (the wall and the stand are far from its surface)
     assert on_object.sum() > 150
-    assert np.percentile(plane[on_object], 99) < 0.05, np.percentile(plane[on_object], [50, 99])
+    # (the last few per cent: where two parts meet, the nearest sample point may lie on the other part)
+    assert np.percentile(plane[on_object], 97) < 0.03, np.percentile(plane[on_object], [50, 97])
 
 
 def test_sample_is_the_union_surface_uniform_outward_and_painted():
