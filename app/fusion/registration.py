@@ -140,17 +140,23 @@ class Tracker:
         init = self.prediction()
         tgt = self._map_cloud(pts, init)
         coarse_src = self._cloud(pts[::3], nrm[::3], rgb[::3])  # a coarse step needs fewer points
-        est = reg.TransformationEstimationPointToPlane(reg.TukeyLoss(k=st.coarse_mm))
-        r = reg.registration_icp(
-            coarse_src, tgt, st.coarse_mm, init, est, reg.ICPConvergenceCriteria(max_iteration=st.coarse_iterations)
-        )
-        fine = reg.ICPConvergenceCriteria(relative_fitness=1e-7, relative_rmse=1e-7, max_iteration=st.fine_iterations)
-        if st.colour:
-            est = reg.TransformationEstimationForColoredICP(1.0 - st.colour_weight, reg.TukeyLoss(k=st.fine_mm))
-            r = reg.registration_colored_icp(src, tgt, st.fine_mm, r.transformation, est, fine)
-        else:
-            est = reg.TransformationEstimationPointToPlane(reg.TukeyLoss(k=st.fine_mm))
-            r = reg.registration_icp(src, tgt, st.fine_mm, r.transformation, est, fine)
+        try:  # (Open3D raises when no point of the scan finds the map)
+            est = reg.TransformationEstimationPointToPlane(reg.TukeyLoss(k=st.coarse_mm))
+            r = reg.registration_icp(
+                coarse_src, tgt, st.coarse_mm, init, est, reg.ICPConvergenceCriteria(max_iteration=st.coarse_iterations)
+            )
+            fine = reg.ICPConvergenceCriteria(
+                relative_fitness=1e-7, relative_rmse=1e-7, max_iteration=st.fine_iterations
+            )
+            if st.colour:
+                est = reg.TransformationEstimationForColoredICP(1.0 - st.colour_weight, reg.TukeyLoss(k=st.fine_mm))
+                r = reg.registration_colored_icp(src, tgt, st.fine_mm, r.transformation, est, fine)
+            else:
+                est = reg.TransformationEstimationPointToPlane(reg.TukeyLoss(k=st.fine_mm))
+                r = reg.registration_icp(src, tgt, st.fine_mm, r.transformation, est, fine)
+        except RuntimeError:
+            self.since_ok += 1
+            return TrackResult(False, init, 0.0, 0.0, "no point of the scan near the model")
         M = np.asarray(r.transformation).copy()
         D = np.linalg.inv(init) @ M
         # the jump as the scan's centre sees it (a turn about a far axis shifts the camera's origin a lot)
