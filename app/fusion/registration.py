@@ -19,6 +19,8 @@ import numpy as np
 
 from app.fusion.open3d_import import open3d
 
+MAX_COAST = 3  # scans the prediction goes on at the last step after the last accepted one
+
 
 @dataclass
 class TrackSettings:
@@ -98,10 +100,12 @@ class Tracker:
         self.since_ok = 1  # scans since the last accepted one
 
     def prediction(self) -> np.ndarray:
+        """The last accepted pose moved on by the last step per scan since, for at most MAX_COAST scans: beyond
+        them constant motion is a guess that runs away from the object rather than toward it."""
         if self.pose is None:
             return np.eye(4)
         P = self.pose
-        for _ in range(self.since_ok):
+        for _ in range(min(self.since_ok, MAX_COAST)):
             P = P @ self.step
         return P
 
@@ -117,7 +121,7 @@ class Tracker:
         builds its search tree from the target on every call, and the far side of the model is never matched."""
         st = self.settings
         P = pts @ init[:3, :3].T + init[:3, 3]
-        pad = 2.0 * st.coarse_mm
+        pad = 2.0 * st.coarse_mm * min(self.since_ok, MAX_COAST)  # wider while scans fail
         lo, hi = P.min(axis=0) - pad, P.max(axis=0) + pad
         near = np.all((self.map.points >= lo) & (self.map.points <= hi), axis=1)
         return self._cloud(self.map.points[near], self.map.normals[near], self.map.colours[near])
@@ -139,7 +143,7 @@ class Tracker:
         src = self._cloud(pts, nrm, rgb)
         init = self.prediction()
         tgt = self._map_cloud(pts, init)
-        coarse_src = self._cloud(pts[::3], nrm[::3], rgb[::3])  # a coarse step needs fewer points
+        coarse_src = src
         try:  # (Open3D raises when no point of the scan finds the map)
             est = reg.TransformationEstimationPointToPlane(reg.TukeyLoss(k=st.coarse_mm))
             r = reg.registration_icp(
