@@ -145,13 +145,13 @@ def run_headless(session: Session, args: argparse.Namespace, label: str = "live"
         print(recorder.summary())
         if pipe.capture.tagged > pipe.capture.confirmed:
             print(f"{pipe.capture.tagged - pipe.capture.confirmed} tagged frame(s) next to a break not recorded")
-    if fusion is not None:
-        _finish_fusion(fusion, out)
     if pipe.latest is not None:
         save_result(pipe.latest, processor, out)
         print(f"last scan (frames {', '.join(map(str, pipe.latest.frameset.frame_ids))}) written to {out}")
     else:
         print("no depth map was produced: nothing written")
+    if fusion is not None:  # after the last scan: that folder must be new when it is written
+        _finish_fusion(fusion, out)
     if pipe.error:
         print(f"slscan {label}: stopped: {pipe.error}", file=sys.stderr)
         return 2 if pipe.latest is None else 1

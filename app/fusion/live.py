@@ -13,7 +13,10 @@ from typing import Any
 from app.decode.mosaic import to_rgb
 from app.fusion.colour import scan_colour
 from app.fusion.fuser import Fuser
+from app.recorder import lower_thread_priority
 from core.calibration import Calibration
+
+FUSION_NICENESS = 10  # the capture loop and the decode workers come first
 
 
 class LiveFusion:
@@ -45,6 +48,7 @@ class LiveFusion:
             self._cond.notify()
 
     def _run(self) -> None:
+        lower_thread_priority(FUSION_NICENESS)
         while True:
             with self._cond:
                 while self._slot is None and not self._stop:
