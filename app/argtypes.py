@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from collections.abc import Callable
 
+from core.errors import InputError
+
 
 def _checked(kind: type, ok: Callable[[float], bool], rule: str) -> Callable[[str], int | float]:
     def parse(text: str) -> int | float:
@@ -26,3 +28,16 @@ positive_int = _checked(int, lambda v: v > 0, "greater than 0")
 non_negative_int = _checked(int, lambda v: v >= 0, "0 or more")
 positive_float = _checked(float, lambda v: 0 < v < float("inf"), "greater than 0")
 non_negative_float = _checked(float, lambda v: 0 <= v < float("inf"), "0 or more")
+
+
+def volume_mm(text: str | None) -> tuple[float, ...] | None:
+    """--volume-mm X0,X1,Y0,Y1,Z0,Z1 (camera mm): a working volume, or None."""
+    if text is None:
+        return None
+    try:
+        v = tuple(float(x) for x in text.split(","))
+    except ValueError:
+        v = ()
+    if len(v) != 6 or not all(v[i] < v[i + 1] for i in (0, 2, 4)):
+        raise InputError(f"--volume-mm {text!r}: expected X0,X1,Y0,Y1,Z0,Z1 in mm with X0 < X1, Y0 < Y1, Z0 < Z1")
+    return v

@@ -61,6 +61,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         "config's capture.texture_every; else only on a snapshot or the t key)",
     )
     add_publish_arguments(p)
+    p.add_argument(
+        "--fuse", action="store_true", help="headless: register and integrate every scan into a mesh (slscan[fusion])"
+    )
+    p.add_argument("--voxel-mm", type=float, default=0.5, metavar="V", help="--fuse: TSDF voxel size (default 0.5)")
+    p.add_argument(
+        "--volume-mm", metavar="X0,X1,Y0,Y1,Z0,Z1", help="--fuse: the working volume, camera mm (default: all)"
+    )
     p.set_defaults(func=run)
 
 
@@ -96,6 +103,7 @@ def run_headless(session: Session, args: argparse.Namespace, label: str = "live"
     session.check_outputs(out, getattr(args, "record", None))  # before the decoder compiles and the devices open
     # the decoder first: an error (or Ctrl-C) while it compiles leaves no empty dump behind
     processor = session.processor()
+    fusion = _open_fusion(session, args)
     recorder = open_recorder(session, args.record, args.png_level) if getattr(args, "record", None) else None
     # The devices open on this thread: a projector window (pyglet) stays with it, and this thread
     # serves the window's calls while it waits, so the capture loop's projector thread paces the
@@ -113,7 +121,7 @@ def run_headless(session: Session, args: argparse.Namespace, label: str = "live"
         workers=args.workers,
         max_frames=frames,
         recorder=recorder,
-        on_result=result_sink(args, processor),
+        on_result=_both(result_sink(args, processor), None if fusion is None else fusion.offer),
         texture_at_end=True,  # (the saved last scan: coloured by a texture frame taken near the end)
     )
     count = "every frame" if frames >= 10**12 else f"{frames} frames"
@@ -155,6 +163,8 @@ def run_headless(session: Session, args: argparse.Namespace, label: str = "live"
         print(f"last scan (frames {', '.join(map(str, pipe.latest.frameset.frame_ids))}) written to {out}")
     else:
         print("no depth map was produced: nothing written")
+    if fusion is not None:  # after the last scan: that folder must be new when it is written
+        _finish_fusion(fusion, out)
     if pipe.error:
         print(f"slscan {label}: stopped: {pipe.error}", file=sys.stderr)
         return 2 if pipe.latest is None else 1
@@ -170,6 +180,55 @@ def run_headless(session: Session, args: argparse.Namespace, label: str = "live"
         print(f"slscan {label}: {stopped_by(interrupted)}; stopped cleanly", file=sys.stderr)
         return exit_status(interrupted)
     return 0
+
+
+def _open_fusion(session: Session, args: argparse.Namespace) -> object | None:
+    if not getattr(args, "fuse", False):
+        return None
+    from app.argtypes import volume_mm
+    from app.fusion.live import LiveFusion
+
+    if not args.voxel_mm > 0:
+        raise InputError(f"--voxel-mm {args.voxel_mm:g}: must be > 0")
+    rng = session.depth_range_mm or (100.0, 5000.0)
+    return LiveFusion(session.calibration, rng, volume_mm(args.volume_mm), args.voxel_mm)
+
+
+def _both(a: object, b: object) -> object:
+    if a is None or b is None:
+        return a or b
+
+    def sink(res: object) -> None:
+        a(res)
+        b(res)
+
+    return sink
+
+
+def _finish_fusion(fusion: object, out: Path) -> None:
+    from app.fusion.mesh_io import write_mesh
+    from core.trajectory import write_trajectory
+
+    fusion.stop()
+    print(fusion.summary())
+    s = fusion.fuser.stats
+    if s.track_s:
+        import numpy as np
+
+        print(
+            f"fusion: tracking {1 / np.mean(s.track_s):.1f} scans/s, integration "
+            f"{(1 / np.mean(s.integrate_s)) if s.integrate_s else 0:.1f} scans/s of CPU time"
+        )
+    if fusion.error:
+        print(f"slscan live: fusion stopped: {fusion.error}", file=sys.stderr)
+    if s.integrated:
+        out.mkdir(parents=True, exist_ok=True)
+        write_trajectory(out / "model.trajectory.csv", fusion.fuser.poses)
+        try:
+            ply, obj = write_mesh(fusion.fuser.mesh(), out / "model.ply")
+            print(f"model ({s.integrated} scans) written to {ply}, {obj}")
+        except InputError as exc:
+            print(f"slscan live: fusion: {exc}", file=sys.stderr)
 
 
 def print_figures(fig: dict) -> None:

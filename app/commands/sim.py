@@ -28,8 +28,10 @@ Writes a frame dump (format v1, with the rig's true calibration.yaml and depth_r
 DUMP/ground_truth/: depth.tiff (float32 Z mm, 0 = no surface), column.tiff and row.tiff
 (float32 projector coordinates, NaN where not lit), lit.png (255 = visible and lit). On a moving
 scene (objects marked `moves`, with motion_mm_per_frame, rotation_deg_per_frame, ...: see
-drivers/sim/motion.py) these are the last frame's, and DUMP/ground_truth/frames/NNNNNN/ holds each
-frame's.
+drivers/sim/motion.py) these are the last frame's, DUMP/ground_truth/frames/NNNNNN/ holds each
+frame's, and for whole models (`slscan fuse`, docs/formats.md): surface.ply, the moving object's true
+surface as a dense point sample in its own frame (the camera's at frame 0), and poses.csv, its true
+pose per frame (a trajectory file).
 """
 
 
@@ -109,7 +111,10 @@ def write_ground_truth(gt: object, folder: Path) -> None:
 def run_render(args: argparse.Namespace) -> int:
     from core.dump import DumpWriter
     from core.patterns import parse_size
+    from core.surface_sample import write_surface_sample
+    from core.trajectory import PoseRow, write_trajectory
     from drivers.sim.rig import VirtualRig
+    from drivers.sim.truth import surface_sample
 
     if args.cycles < 1:
         raise InputError(f"--cycles {args.cycles}: must be >= 1")
@@ -127,8 +132,11 @@ def run_render(args: argparse.Namespace) -> int:
     options = pattern_options(get_scheme(args.scheme), args)
     patterns = make_patterns(args.scheme, rig.projector_size, **options)
     prepared = [rig.prepare(img) for img in patterns.images]
-    extra = {"source": f"slscan sim render --scene {rig.scene.name}"}
+    extra: dict = {"source": f"slscan sim render --scene {rig.scene.name}"}
+    if rig.scene.working_volume_mm is not None:
+        extra["working_volume_mm"] = list(rig.scene.working_volume_mm)
     moving = rig.moving
+    true_poses = []
     gt_dir = out / "ground_truth"
     with DumpWriter(out, patterns, rig.calibration, rig.depth_range_mm, extra=extra, mosaic=rig.mosaic) as writer:
         frame_ns = round(1e9 / 60)
@@ -138,9 +146,13 @@ def run_render(args: argparse.Namespace) -> int:
                 rec = writer.add(rig.render(light), pattern=i, frame_id=n + 1, timestamp_ns=n * frame_ns)
                 if moving:  # the scene changes every frame: ground truth per frame as well
                     write_ground_truth(rig.ground_truth, gt_dir / "frames" / Path(rec.file).stem)
+                    true_poses.append(PoseRow(n, n + 1, "true", np.linalg.inv(rig.object_pose(n))))
                 n += 1
     gt = rig.ground_truth
     write_ground_truth(gt, gt_dir)
+    if moving and rig.moving_shapes:
+        write_surface_sample(gt_dir / "surface.ply", surface_sample(rig.moving_shapes))
+        write_trajectory(gt_dir / "poses.csv", true_poses)
     lit = float(gt.lit.mean())
     w, h = rig.camera_size
     print(

@@ -19,11 +19,23 @@ and shifted, as one rigid body:
 
 Without rotation a moving object's pose is its frame-0 pose shifted by s(k) * motion_mm_per_frame,
 as the rig has always done (`Shape.translated`).
+
+A hand-held path adds, after the above, a smooth random wander w(k) about the same centre p:
+
+    X_k = Rot(w_rot(k)) (X'_k - p') + p' + w_shift(k),   p' = p + s(k) * motion_mm_per_frame
+
+- `wander_mm` [x, y, z]: the translation's amplitude per camera axis (mm); `wander_deg` [x, y, z]: the
+  rotation vector's amplitude per axis (degrees); both 0 = no wander.
+- `wander_period_frames`: the typical period; each component is a sum of three sines whose periods lie
+  within 2/3..2 of it, with seeded phases (`wander_seed`), so a component moves at most
+  amplitude * 2 pi * 1.5 / period per frame. w(0) = 0: frame 0 is the scene as written.
+
+`Motion.pose(k)` is the rigid map (R, t) of frame 0's moving objects to frame k's: X_k = R X_0 + t.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -35,7 +47,13 @@ MOTION_KEYS = (
     "rotation_deg_per_frame",
     "rotation_axis",
     "rotation_center_mm",
+    "wander_mm",
+    "wander_deg",
+    "wander_period_frames",
+    "wander_seed",
 )
+
+_WANDER_TERMS = 3  # sines per component
 
 
 def rotation_matrix(axis: np.ndarray, angle_deg: float) -> np.ndarray:
@@ -53,6 +71,10 @@ class Motion:
     rate_deg: float  # degrees per frame
     axis: np.ndarray  # (3,) unit
     centre: np.ndarray  # (3,) a point on the axis at frame 0, camera mm
+    wander_mm: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,) amplitudes
+    wander_deg: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    wander_period: float = 240.0  # frames
+    wander_seed: int = 0
 
     @classmethod
     def from_options(cls, options: object, shapes: list[Shape]) -> Motion:
@@ -65,11 +87,51 @@ class Motion:
         else:
             moving = [s.c for s in shapes if s.moves]
             centre = np.mean(moving, axis=0) if moving else np.zeros(3)
-        return cls(v, int(options.motion_bounce_frames), float(options.rotation_deg_per_frame), axis, centre)
+        return cls(
+            v,
+            int(options.motion_bounce_frames),
+            float(options.rotation_deg_per_frame),
+            axis,
+            centre,
+            np.asarray(options.wander_mm, np.float64),
+            np.asarray(options.wander_deg, np.float64),
+            float(options.wander_period_frames),
+            int(options.wander_seed),
+        )
+
+    @property
+    def wanders(self) -> bool:
+        return bool(np.any(self.wander_mm) or np.any(self.wander_deg))
 
     @property
     def active(self) -> bool:
-        return bool(np.any(self.velocity)) or self.rate_deg != 0.0
+        return bool(np.any(self.velocity)) or self.rate_deg != 0.0 or self.wanders
+
+    def _wander(self, step: int) -> tuple[np.ndarray, np.ndarray]:
+        """(rotation vector in degrees, shift in mm) of the wander at frame `step`; both zero at frame 0."""
+        rng = np.random.default_rng(self.wander_seed)
+        # periods within 2/3..2 of the typical one, phases uniform; per component (6) and term (3)
+        freq = rng.uniform(0.5, 1.5, (6, _WANDER_TERMS)) / self.wander_period
+        phase = rng.uniform(0.0, 2.0 * np.pi, (6, _WANDER_TERMS))
+        weight = rng.uniform(0.5, 1.0, (6, _WANDER_TERMS))
+        weight /= weight.sum(axis=1, keepdims=True)
+        arg = 2.0 * np.pi * freq * step + phase
+        w = (weight * (np.sin(arg) - np.sin(phase))).sum(axis=1)
+        return w[:3] * self.wander_deg, w[3:] * self.wander_mm
+
+    def pose(self, step: int) -> tuple[np.ndarray, np.ndarray]:
+        """(R, t): frame 0's moving objects to frame `step`'s, X_k = R X_0 + t (camera mm)."""
+        shift = self.velocity * self.travel(step) if self.active else np.zeros(3)
+        Rm = rotation_matrix(self.axis, self.rate_deg * step)
+        p = self.centre
+        R, t = Rm, p - Rm @ p + shift
+        if self.wanders:
+            rot_deg, move = self._wander(step)
+            angle = float(np.linalg.norm(rot_deg))
+            Rw = rotation_matrix(rot_deg / angle, angle) if angle > 0 else np.eye(3)
+            q = p + shift
+            R, t = Rw @ R, Rw @ (t - q) + q + move
+        return R, t
 
     def travel(self, step: int) -> int:
         """s(k): how many frames' worth of translation the objects are out at frame k."""
@@ -83,6 +145,9 @@ class Motion:
         """The scene's shapes at frame `step`: moving ones re-posed, the others as they are."""
         if step == 0 or not self.active:
             return base
+        if self.wanders:
+            R, t = self.pose(step)
+            return [s.posed(R @ s.R, R @ s.c + t) if s.moves else s for s in base]
         shift = self.velocity * self.travel(step)
         if self.rate_deg == 0.0:
             return [s.translated(shift) if s.moves else s for s in base]

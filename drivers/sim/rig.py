@@ -78,6 +78,10 @@ class RigOptions:
     rotation_deg_per_frame: float = 0.0  # turn per frame about rotation_axis
     rotation_axis: tuple[float, float, float] = (0.0, -1.0, 0.0)  # direction, camera frame (default: up)
     rotation_center_mm: tuple[float, float, float] | None = None  # a point on the axis; None = moving objects' centre
+    wander_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)  # hand-held path: translation amplitudes, camera mm
+    wander_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)  # and rotation amplitudes, degrees
+    wander_period_frames: float = 240.0  # its typical period
+    wander_seed: int = 0  # its phases
     render_ahead: bool = False  # moving scenes: compose the next frame on a background thread (the same images)
     # a single-chip sensor: its mosaic (RGGB, GRBG, GBRG, BGGR; true = RGGB), frames raw (H, W), one channel per
     # site; false = one colour per pixel, as the paper's 3-CCD camera
@@ -235,7 +239,9 @@ class VirtualRig:
         for key, value in list(geo.items()):
             if isinstance(value, list):
                 geo[key] = tuple(value)
-        for key in ("ambient_color", "motion_mm_per_frame", "rotation_axis", "rotation_center_mm"):
+        triples = ("ambient_color", "motion_mm_per_frame", "rotation_axis", "rotation_center_mm")
+        triples += ("wander_mm", "wander_deg")
+        for key in triples:
             if key in opts and isinstance(opts[key], list):
                 opts[key] = tuple(opts[key])
         try:
@@ -284,6 +290,13 @@ class VirtualRig:
             raise bad("render_ahead", "must be true or false")
         if o.rotation_center_mm is not None and not triple(o.rotation_center_mm):
             raise bad("rotation_center_mm", "must be a point [x, y, z] in mm (or left out: the moving objects' centre)")
+        for key in ("wander_mm", "wander_deg"):
+            if not triple(getattr(o, key)):
+                raise bad(key, "must be [x, y, z] amplitudes")
+        if not (_finite(o.wander_period_frames) and o.wander_period_frames > 0):
+            raise bad("wander_period_frames", "must be a number of frames > 0")
+        if not (isinstance(o.wander_seed, int) and not isinstance(o.wander_seed, bool) and o.wander_seed >= 0):
+            raise bad("wander_seed", "must be a whole number >= 0")
         try:
             M = o.crosstalk_matrix()
         except (ValueError, TypeError):
@@ -325,6 +338,19 @@ class VirtualRig:
     def moving(self) -> bool:
         """Whether frames differ by more than noise: objects marked `moves` and a motion option set."""
         return self._moves
+
+    def object_pose(self, step: int) -> np.ndarray:
+        """4x4 map of the moving objects from frame 0 to frame `step` (camera mm): X_step = M X_0. The object's
+        frame of drivers/sim/truth.py is the camera frame at frame 0; identity on a still rig."""
+        M = np.eye(4)
+        if self._moves:
+            M[:3, :3], M[:3, 3] = self._motion.pose(step)
+        return M
+
+    @property
+    def moving_shapes(self) -> list[Shape]:
+        """The shapes that move (at frame 0): the object a turntable or a hand turns."""
+        return [s for s in self._base_shapes if s.moves]
 
     @property
     def board(self) -> Board | None:

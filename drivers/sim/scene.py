@@ -78,6 +78,9 @@ class Scene:
     effects: dict = field(default_factory=dict)  # RigOptions overrides
     board: Board | None = None
     path: Path | None = None
+    # where the moving object can be, camera mm [x0, x1, y0, y1, z0, z1], without the static stand and wall: what
+    # `slscan fuse` keeps of each scan (written to a rendered dump as working_volume_mm); None = not given
+    working_volume_mm: tuple[float, ...] | None = None
 
 
 def list_presets(folder: Path = SCENES_DIR) -> list[tuple[str, str]]:
@@ -121,6 +124,11 @@ def parse_scene(data: dict, path: Path) -> Scene:
         if key not in names:
             raise SceneError(f"{path}: field 'rig.{key}' is unknown (known: {', '.join(sorted(names))})")
     effects = w.opt(data, "effects", dict, {})
+    volume = w.opt(data, "working_volume_mm", list, None)
+    if volume is not None and not (
+        len(volume) == 6 and all(_is_num(v) for v in volume) and all(volume[i] < volume[i + 1] for i in (0, 2, 4))
+    ):
+        raise SceneError(f"{path}: field 'working_volume_mm' must be [x0, x1, y0, y1, z0, z1] mm with x0 < x1, ...")
     objects = w.req(data, "objects", list)
     if not objects:
         raise SceneError(f"{path}: field 'objects' is empty: a scene needs at least one object")
@@ -147,6 +155,7 @@ def parse_scene(data: dict, path: Path) -> Scene:
         effects=effects,
         board=board,
         path=path,
+        working_volume_mm=None if volume is None else tuple(float(v) for v in volume),
     )
 
 

@@ -159,3 +159,11 @@ def test_calibration_levels_are_0_to_255_and_stay_inside(tmp_path):
     (folder / "000_G_128.png").symlink_to(outside)
     with pytest.raises(InputError, match=r"levels\.yaml: frames\[0\]\.file = '000_G_128\.png' is a symlink that"):
         read_levels(folder)
+
+
+def test_a_file_name_with_a_line_break_is_named_on_one_line(dump):
+    # (found by the fuzzer: YAML folds "f\n\nrames/..." into a name holding a newline)
+    edit(dump / "dump.yaml", r"file: frames/000000.png", r'file: "frames/0\\n0.png"')  # (YAML's escape \n)
+    with pytest.raises(InputError) as err:
+        read_dump(dump)
+    assert "\n" not in str(err.value) and "frames/0\\n0.png" in str(err.value)

@@ -1,0 +1,81 @@
+"""Fusing a recorded dump: decode each sliding frame set in order, register it, integrate it."""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from app.decode.pipeline import DepthRangeWarning, EmptyResultWarning, FrameSetDecoder
+from app.framesets import group_frame_sets
+from app.fusion.colour import scan_colour
+from app.fusion.fuser import DEFAULT_VOXEL_MM, Fuser
+from core.calibration import Calibration
+from core.dump import Dump
+from core.errors import InputError
+
+MIN_SCANS = 2
+MAX_DROPPED_IN_A_ROW = 10  # then tracking is lost: the model stops there
+
+
+class TrackingLostError(InputError):
+    """Registration failed on too many scans in a row; the fuser holds the model built until then."""
+
+    def __init__(self, message: str, fuser: Fuser) -> None:
+        super().__init__(message)
+        self.fuser = fuser
+
+
+@dataclass
+class FuseOptions:
+    voxel_mm: float = DEFAULT_VOXEL_MM
+    volume_mm: tuple[float, ...] | None = None  # None: the dump's working_volume_mm, if it has one
+    min_weight: float = 3.0
+    max_dropped_in_a_row: int = MAX_DROPPED_IN_A_ROW
+    motion: str = "auto"
+
+
+def fuse_dump(
+    dump: Dump,
+    calibration: Calibration | None,
+    options: FuseOptions,
+    progress: Callable[[int, int], None] | None = None,
+) -> Fuser:
+    if calibration is None:
+        raise InputError(f"{dump.folder}: the dump has no calibration: fusion needs one (give --calibration FILE)")
+    if dump.scheme != "two-shot" and dump.scheme != "one-shot":
+        raise InputError(f"{dump.folder}: a {dump.scheme} dump: fusion takes one-shot or two-shot scans")
+    meta = dump.patterns_meta()
+    tags = [(f.frame_id, f.pattern) for f in dump.frames]
+    sets, _ = group_frame_sets(tags, dump.scheme, len(meta["images"]), sliding=True)
+    if len(sets) < MIN_SCANS:
+        raise InputError(f"{dump.folder}: {len(sets)} complete frame set(s): fusion needs at least {MIN_SCANS} scans")
+    rng = dump.depth_range_mm() or (100.0, 5000.0)
+    volume = options.volume_mm
+    if volume is None and dump.meta.get("working_volume_mm") is not None:
+        volume = tuple(float(v) for v in dump.meta["working_volume_mm"])
+    fuser = Fuser(calibration, rng, volume, options.voxel_mm, min_weight=options.min_weight)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", EmptyResultWarning)
+        warnings.simplefilter("ignore", DepthRangeWarning)
+        dec = FrameSetDecoder(dump.scheme, meta, calibration, rng, motion=options.motion, mosaic=dump.mosaic)
+        for n, fs in enumerate(sets):
+            frames = [dump.load_frame(i) for i in fs.indices]
+            previous = dump.load_frame(fs.previous) if fs.previous is not None else None
+            _, depth = dec.stripes_and_depth(frames, fs.newest_index, previous)
+            newest = fs.indices[fs.newest_index]
+            scan = fuser.scan(depth, scan_colour(frames), dump.frames[newest].frame_id)
+            res = fuser.add(scan)
+            if progress is not None:
+                progress(n + 1, len(sets))
+            if fuser.stats.dropped_in_a_row > options.max_dropped_in_a_row:
+                raise TrackingLostError(
+                    f"{dump.folder}: tracking lost at scan {n} (frame {scan.frame_id}): "
+                    f"{fuser.stats.dropped_in_a_row} scans in a row failed to register (last: {res.reason})",
+                    fuser,
+                )
+    if fuser.stats.integrated < MIN_SCANS:
+        raise TrackingLostError(
+            f"{dump.folder}: only {fuser.stats.integrated} scan(s) registered: too few to build a model", fuser
+        )
+    return fuser

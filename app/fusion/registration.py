@@ -1,0 +1,208 @@
+"""Registration of each scan to the model: point-to-plane ICP (Open3D) from a predicted pose, with a failure test.
+
+Poses map a scan's camera coordinates into the model's frame (the camera's at the first scan), X_model = M X_cam.
+The model the scans are registered to is a point map in that frame: one point (with its normal) per `map_voxel_mm`
+cell, taken from the first registered scan that reached the cell and never moved after (so the map stays anchored
+to the early scans and a full turn closes on them rather than on its own recent past). A scan is tried from the
+pose predicted by constant motion (the last pose times the last step), point-to-plane coarse then fine (the fine
+stage coloured ICP with `colour`, off by default: docs/performance.md, "Whole models"); it is accepted when
+enough of its points found the map (fitness), they fit well (inlier RMSE) and the step from the prediction is
+plausible; otherwise it is dropped, the model is left as it was, and the prediction goes on from the last good
+pose.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from app.fusion.open3d_import import open3d
+
+MAX_COAST = 3  # scans the prediction goes on at the last step after the last accepted one
+
+
+@dataclass
+class TrackSettings:
+    stride: int = 3  # back-project every stride-th pixel (each way) of a scan
+    map_voxel_mm: float = 1.0
+    coarse_mm: float = 4.0  # correspondence distances of the two ICP stages
+    fine_mm: float = 2.0
+    coarse_iterations: int = 12
+    fine_iterations: int = 20
+    min_fitness: float = 0.5  # share of the scan's points with a map point within fine_mm
+    max_rmse_mm: float = 0.6
+    max_step_deg: float = 8.0  # from the prediction
+    max_step_mm: float = 15.0
+    max_incidence_deg: float = 70.0  # steeper points are not added to the map (their depth is the least sure)
+    colour: bool = False  # the fine stage is coloured ICP (Park et al. 2017): texture holds what geometry lets slide
+    colour_weight: float = 0.9  # 1 - lambda_geometric
+
+
+@dataclass
+class TrackResult:
+    ok: bool
+    pose: np.ndarray  # (4, 4) the estimate, or the prediction it was tried from when not ok
+    fitness: float
+    rmse_mm: float
+    reason: str = ""
+
+
+def rotation_deg(R: np.ndarray) -> float:
+    return float(np.degrees(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0))))
+
+
+class PointMap:
+    """The model's points and normals, one per occupied cell; cells, once filled, are never overwritten."""
+
+    def __init__(self, voxel_mm: float) -> None:
+        self.voxel = float(voxel_mm)
+        self.keys = np.zeros(0, np.int64)  # sorted
+        self.points = np.zeros((0, 3))
+        self.normals = np.zeros((0, 3))
+        self.colours = np.zeros((0, 3))
+
+    def _key(self, p: np.ndarray) -> np.ndarray:
+        q = np.floor(p / self.voxel).astype(np.int64) + (1 << 20)
+        return (q[:, 0] << 42) | (q[:, 1] << 21) | q[:, 2]
+
+    def add(self, points: np.ndarray, normals: np.ndarray, colours: np.ndarray) -> int:
+        """Points in cells not yet filled (the first point of a cell when several fall in it); how many."""
+        if len(points) == 0:
+            return 0
+        k = self._key(points)
+        k, first = np.unique(k, return_index=True)
+        pos = np.searchsorted(self.keys, k)
+        pos_c = np.minimum(pos, max(len(self.keys) - 1, 0))
+        new = (pos >= len(self.keys)) | (self.keys[pos_c] != k) if len(self.keys) else np.ones(len(k), bool)
+        k, idx = k[new], first[new]
+        if not len(k):
+            return 0
+        keys = np.concatenate([self.keys, k])
+        order = np.argsort(keys, kind="stable")
+        self.keys = keys[order]
+        self.points = np.concatenate([self.points, points[idx]])[order]
+        self.normals = np.concatenate([self.normals, normals[idx]])[order]
+        self.colours = np.concatenate([self.colours, colours[idx]])[order]
+        return len(k)
+
+    def __len__(self) -> int:
+        return len(self.keys)
+
+
+class Tracker:
+    def __init__(self, settings: TrackSettings | None = None) -> None:
+        self.o3d = open3d()
+        self.settings = settings or TrackSettings()
+        self.map = PointMap(self.settings.map_voxel_mm)
+        self.pose: np.ndarray | None = None  # the last accepted pose
+        self.step = np.eye(4)  # the last accepted step, per scan
+        self.since_ok = 1  # scans since the last accepted one
+
+    def prediction(self) -> np.ndarray:
+        """The last accepted pose moved on by the last step per scan since, for at most MAX_COAST scans: beyond
+        them constant motion is a guess that runs away from the object rather than toward it."""
+        if self.pose is None:
+            return np.eye(4)
+        P = self.pose
+        for _ in range(min(self.since_ok, MAX_COAST)):
+            P = P @ self.step
+        return P
+
+    def _cloud(self, pts: np.ndarray, nrm: np.ndarray, rgb: np.ndarray) -> object:
+        o3d = self.o3d
+        pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts))
+        pc.normals = o3d.utility.Vector3dVector(nrm)
+        pc.colors = o3d.utility.Vector3dVector(rgb)
+        return pc
+
+    def _map_cloud(self, pts: np.ndarray, init: np.ndarray) -> object:
+        """The map's points near the scan placed at `init` (its box, padded by twice the coarse distance): Open3D
+        builds its search tree from the target on every call, and the far side of the model is never matched."""
+        st = self.settings
+        P = pts @ init[:3, :3].T + init[:3, 3]
+        pad = 2.0 * st.coarse_mm * min(self.since_ok, MAX_COAST)  # wider while scans fail
+        lo, hi = P.min(axis=0) - pad, P.max(axis=0) + pad
+        near = np.all((self.map.points >= lo) & (self.map.points <= hi), axis=1)
+        return self._cloud(self.map.points[near], self.map.normals[near], self.map.colours[near])
+
+    def track(self, pts: np.ndarray, nrm: np.ndarray, rgb: np.ndarray) -> TrackResult:
+        """Register a scan's camera-frame points (with normals toward the camera, colours 0..1); on success, extend
+        the map."""
+        st = self.settings
+        if self.pose is None:  # the first scan defines the model's frame
+            self._accept(np.eye(4), pts, nrm, rgb)
+            return TrackResult(True, np.eye(4), 1.0, 0.0)
+        ray = pts / np.linalg.norm(pts, axis=1, keepdims=True)
+        facing = -np.einsum("ij,ij->i", nrm, ray) >= np.cos(np.radians(st.max_incidence_deg))
+        pts, nrm, rgb = pts[facing], nrm[facing], rgb[facing]
+        if len(pts) < 50:
+            self.since_ok += 1
+            return TrackResult(False, self.prediction(), 0.0, 0.0, f"too few points ({len(pts)})")
+        reg = self.o3d.pipelines.registration
+        src = self._cloud(pts, nrm, rgb)
+        init = self.prediction()
+        tgt = self._map_cloud(pts, init)
+        coarse_src = src
+        try:  # (Open3D raises when no point of the scan finds the map)
+            est = reg.TransformationEstimationPointToPlane(reg.TukeyLoss(k=st.coarse_mm))
+            r = reg.registration_icp(
+                coarse_src, tgt, st.coarse_mm, init, est, reg.ICPConvergenceCriteria(max_iteration=st.coarse_iterations)
+            )
+            fine = reg.ICPConvergenceCriteria(
+                relative_fitness=1e-7, relative_rmse=1e-7, max_iteration=st.fine_iterations
+            )
+            if st.colour:
+                est = reg.TransformationEstimationForColoredICP(1.0 - st.colour_weight, reg.TukeyLoss(k=st.fine_mm))
+                r = reg.registration_colored_icp(src, tgt, st.fine_mm, r.transformation, est, fine)
+            else:
+                est = reg.TransformationEstimationPointToPlane(reg.TukeyLoss(k=st.fine_mm))
+                r = reg.registration_icp(src, tgt, st.fine_mm, r.transformation, est, fine)
+        except RuntimeError:
+            self.since_ok += 1
+            return TrackResult(False, init, 0.0, 0.0, "no point of the scan near the model")
+        M = np.asarray(r.transformation).copy()
+        D = np.linalg.inv(init) @ M
+        # the jump as the scan's centre sees it (a turn about a far axis shifts the camera's origin a lot)
+        centre = pts.mean(axis=0)
+        jump_mm = float(np.linalg.norm(D[:3, :3] @ centre + D[:3, 3] - centre))
+        reason = ""
+        if r.fitness < st.min_fitness:
+            reason = f"fitness {r.fitness:.2f} < {st.min_fitness:g}"
+        elif r.inlier_rmse > st.max_rmse_mm:
+            reason = f"inlier RMSE {r.inlier_rmse:.2f} mm > {st.max_rmse_mm:g}"
+        elif rotation_deg(D[:3, :3]) > st.max_step_deg or jump_mm > st.max_step_mm:
+            reason = f"a jump from the prediction ({rotation_deg(D[:3, :3]):.1f} deg, {jump_mm:.1f} mm)"
+        if reason:
+            self.since_ok += 1
+            return TrackResult(False, init, float(r.fitness), float(r.inlier_rmse), reason)
+        self._accept(M, pts, nrm, rgb)
+        return TrackResult(True, M, float(r.fitness), float(r.inlier_rmse))
+
+    def _accept(self, M: np.ndarray, pts: np.ndarray, nrm: np.ndarray, rgb: np.ndarray) -> None:
+        if self.pose is not None:
+            # the step per scan, averaged over the scans since the last accepted one (rotation by its angle)
+            step = np.linalg.inv(self.pose) @ M
+            self.step = _root(step, self.since_ok)
+        self.pose = M
+        self.since_ok = 1
+        ray = pts / np.linalg.norm(pts, axis=1, keepdims=True)
+        steep = -np.einsum("ij,ij->i", nrm, ray) < np.cos(np.radians(self.settings.max_incidence_deg))
+        keep = ~steep
+        P = pts[keep] @ M[:3, :3].T + M[:3, 3]
+        N = nrm[keep] @ M[:3, :3].T
+        self.map.add(P, N, rgb[keep])
+
+
+def _root(T: np.ndarray, n: int) -> np.ndarray:
+    """The rigid motion S with S^n = T (same axis, 1/n of the angle and, for small angles, of the shift)."""
+    if n == 1:
+        return T
+    import cv2
+
+    rvec, _ = cv2.Rodrigues(T[:3, :3])
+    R, _ = cv2.Rodrigues(rvec / n)
+    S = np.eye(4)
+    S[:3, :3] = R
+    S[:3, 3] = T[:3, 3] / n
+    return S

@@ -1,0 +1,135 @@
+"""One scan ready for fusion: depth and colour on the undistorted pinhole grid, cut to the working volume.
+
+Open3D's TSDF integration and the registration's back-projection assume a pinhole camera; the decoder's depth is on
+the camera's distorted pixel grid. `ScanMaker` resamples it once per scan through cv2.remap tables made once per
+calibration: bilinear where the four source pixels have depth and agree within `max_step_mm` (so no mixed pixel
+bridges a depth edge), none elsewhere. Depth Z is unchanged by the resampling; only where it is looked up moves.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from core.calibration import Calibration
+
+
+@dataclass
+class Scan:
+    depth: np.ndarray  # (H, W) float32 Z mm on the pinhole grid, 0 = none
+    colour: np.ndarray  # (H, W, 3) uint8 RGB on the same grid
+    frame_id: int  # the newest frame's id: the geometry is that frame's
+
+
+class ScanMaker:
+    def __init__(
+        self,
+        calibration: Calibration,
+        volume_mm: tuple[float, ...] | None = None,
+        max_step_mm: float = 2.0,
+        edge_px: int = 3,
+        smooth_px: float = 2.0,
+    ) -> None:
+        w, h = calibration.camera_size
+        self.size = (w, h)
+        self.K = calibration.camera_matrix.copy()
+        self.K[0, 1] = 0.0  # the pinhole grid has no skew (Open3D's intrinsics cannot hold one)
+        self._mx, self._my = cv2.initUndistortRectifyMap(
+            calibration.camera_matrix, calibration.camera_distortion, None, self.K, (w, h), cv2.CV_32FC1
+        )
+        # integer maps to the top-left tap of each bilinear read (exact under nearest lookup)
+        self._fx, self._fy = np.floor(self._mx), np.floor(self._my)
+        ys, xs = np.mgrid[0:h, 0:w].astype(np.float32)
+        self.ray_x = (xs - self.K[0, 2]) / self.K[0, 0]  # X / Z per pinhole pixel
+        self.ray_y = (ys - self.K[1, 2]) / self.K[1, 1]
+        self.volume = None if volume_mm is None else np.asarray(volume_mm, np.float32)
+        self.max_step = float(max_step_mm)
+        self.smooth_px = float(smooth_px)
+        self._kernel = np.ones((2, 2), np.uint8)
+        self._edge_kernel = np.ones((2 * edge_px + 1, 2 * edge_px + 1), np.uint8)
+
+    def make(self, depth: np.ndarray, colour: np.ndarray, frame_id: int) -> Scan:
+        d = np.ascontiguousarray(depth, np.float32)
+        lin = cv2.remap(d, self._mx, self._my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        valid = (d > 0).astype(np.float32)
+        cover = cv2.remap(valid, self._mx, self._my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        big = np.where(d > 0, d, 0).astype(np.float32)
+        small = np.where(d > 0, d, np.float32(1e9)).astype(np.float32)
+        # a bilinear tap reads the 2x2 block whose top-left is floor(x, y): max and min over it
+        hi = cv2.dilate(big, self._kernel, anchor=(0, 0), borderType=cv2.BORDER_CONSTANT, borderValue=0)
+        lo = cv2.erode(small, self._kernel, anchor=(0, 0), borderType=cv2.BORDER_CONSTANT, borderValue=1e9)
+        hi_u = cv2.remap(hi, self._fx, self._fy, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        lo_u = cv2.remap(lo, self._fx, self._fy, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        ok = (cover > 0.999) & (hi_u - lo_u <= self.max_step)
+        out = np.where(ok, lin, 0).astype(np.float32)
+        if self.volume is not None:
+            out = self.crop(out)
+        # silhouettes and depth edges: the decoder's least sure pixels, and fixed in the camera's frame, so they
+        # would pull a registration toward no motion; the pixels within edge_px of one are left out
+        good = cv2.erode((out > 0).astype(np.uint8), self._edge_kernel)
+        out[good == 0] = 0
+        col = cv2.remap(colour, self._mx, self._my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        return Scan(out, col, frame_id)
+
+    def crop(self, depth: np.ndarray) -> np.ndarray:
+        """Depth outside the working volume (camera mm) set to none."""
+        x0, x1, y0, y1, z0, z1 = self.volume
+        X = self.ray_x * depth
+        Y = self.ray_y * depth
+        keep = (depth >= z0) & (depth <= z1) & (X >= x0) & (X <= x1) & (Y >= y0) & (Y <= y1)
+        return np.where(keep, depth, 0).astype(np.float32)
+
+    def points_and_normals(
+        self, depth: np.ndarray, stride: int, colour: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Camera-frame points (N, 3) on every stride-th pixel with depth, unit normals toward the camera from the
+        depth grid's central differences (pixels whose four neighbours have depth within max_step_mm), and their
+        colours (N, 3) in 0..1 (grey without `colour`)."""
+        # smoothed first: the decoder's small depth ripple follows the projector's stripes, which stay put in the
+        # camera's frame, and on a smooth surface it would hold a registration at no motion
+        Z = smooth_depth(depth, self.smooth_px)
+        X = self.ray_x * Z
+        Y = self.ray_y * Z
+        P = np.stack([X, Y, Z], axis=2)
+        s = stride
+        c = P[s:-s:s, s:-s:s]
+        dx = P[s:-s:s, 2 * s :: s][:, : c.shape[1]] - P[s:-s:s, : -2 * s : s][:, : c.shape[1]]
+        dy = P[2 * s :: s, s:-s:s][: c.shape[0]] - P[: -2 * s : s, s:-s:s][: c.shape[0]]
+        zc = c[..., 2]
+        zs = [
+            P[s:-s:s, 2 * s :: s][:, : c.shape[1], 2],
+            P[s:-s:s, : -2 * s : s][:, : c.shape[1], 2],
+            P[2 * s :: s, s:-s:s][: c.shape[0], :, 2],
+            P[: -2 * s : s, s:-s:s][: c.shape[0], :, 2],
+        ]
+        ok = zc > 0
+        for z in zs:
+            ok &= (z > 0) & (np.abs(z - zc) <= self.max_step * s)
+        n = np.cross(dx[ok], dy[ok])
+        norm = np.linalg.norm(n, axis=1, keepdims=True)
+        good = norm[:, 0] > 0
+        pts = c[ok][good].astype(np.float64)
+        n = (n[good] / norm[good]).astype(np.float64)
+        flip = np.einsum("ij,ij->i", n, pts) > 0  # toward the camera (at the origin)
+        n[flip] *= -1
+        if colour is None:
+            rgb = np.full((len(pts), 3), 0.5)
+        else:
+            # smoothed as the depth: what is left of the stripes in a frame set's colour stays put in the camera
+            soft = cv2.GaussianBlur(colour, (0, 0), self.smooth_px)
+            rgb = soft[s:-s:s, s:-s:s][: c.shape[0], : c.shape[1]][ok][good].astype(np.float64) / 255.0
+        return pts, n, rgb
+
+
+def smooth_depth(depth: np.ndarray, sigma_px: float) -> np.ndarray:
+    """Gaussian smoothing of the pixels with depth (normalised: pixels without depth neither count nor gain one)."""
+    if sigma_px <= 0:
+        return depth
+    valid = (depth > 0).astype(np.float32)
+    num = cv2.GaussianBlur(depth * valid, (0, 0), sigma_px)
+    den = cv2.GaussianBlur(valid, (0, 0), sigma_px)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = np.where(valid > 0, num / den, 0)
+    return out.astype(np.float32)
