@@ -3,6 +3,7 @@ process pool and its Dask workers (app/cluster/), so both write the same bytes."
 
 from __future__ import annotations
 
+import argparse
 import bisect
 import hashlib
 import os
@@ -97,6 +98,24 @@ def plan_dump(
     )
     digest = hashlib.sha256(cal_file.read_bytes()).hexdigest() if cal_file is not None else ""
     return DumpPlan(dump, settings, sets, stats, len(tags), digest)
+
+
+def plan_dumps(args: argparse.Namespace, resolve: bool = False) -> list[DumpPlan]:
+    """plan_dump of every DUMP of a `slscan decode` command line, with its options; resolve: absolute folders
+    (for workers elsewhere, which resolve nothing against this process's folder)."""
+    return [
+        plan_dump(
+            Path(d).resolve() if resolve else d,
+            args.calibration,
+            disjoint=args.disjoint,
+            segmentation=getattr(args, "segmentation", None),
+            motion=getattr(args, "motion", "auto"),
+            png16=args.png16,
+            preview=args.preview,
+            depth_scale=args.depth_scale,
+        )
+        for d in args.dump
+    ]
 
 
 def quiet_opencv() -> None:

@@ -29,26 +29,14 @@ from app.cluster.manifest import (
 from app.cluster.summary import Failure, RunSummary
 from app.cluster.task import ChunkResult, decode_chunk
 from app.cluster.zarr_depth import create_store, require_zarr
-from app.offline_decode import DumpPlan, output_subfolders, plan_dump, write_calibration_copy
+from app.offline_decode import DumpPlan, output_subfolders, plan_dumps, write_calibration_copy
 from core.errors import InputError
 
 
 def run_on_cluster(args: argparse.Namespace) -> int:
     distributed = require_distributed()
     parse_address(args.scheduler)  # (a malformed address is refused before any dump is read)
-    plans = [
-        plan_dump(
-            Path(d).resolve(),  # workers elsewhere resolve nothing against this process's folder
-            args.calibration,
-            disjoint=args.disjoint,
-            segmentation=getattr(args, "segmentation", None),
-            motion=getattr(args, "motion", "auto"),
-            png16=args.png16,
-            preview=args.preview,
-            depth_scale=args.depth_scale,
-        )
-        for d in args.dump
-    ]
+    plans = plan_dumps(args, resolve=True)
     subs = output_subfolders([p.dump.folder for p in plans])
     shapes = [_check_first_frame(plan) for plan in plans]
     if args.zarr:

@@ -17,7 +17,7 @@ from app.offline_decode import (
     DumpPlan,
     SetDecoder,
     output_subfolders,
-    plan_dump,
+    plan_dumps,
     quiet_opencv,
     write_calibration_copy,
 )
@@ -131,19 +131,7 @@ def run(args: argparse.Namespace) -> int:
         from app.cluster.run import run_on_cluster  # (imports dask.distributed: only when asked for)
 
         return run_on_cluster(args)
-    plans = [
-        plan_dump(
-            d,
-            args.calibration,
-            disjoint=args.disjoint,
-            segmentation=getattr(args, "segmentation", None),
-            motion=getattr(args, "motion", "auto"),
-            png16=args.png16,
-            preview=args.preview,
-            depth_scale=args.depth_scale,
-        )
-        for d in args.dump
-    ]
+    plans = plan_dumps(args)
     subfolders = output_subfolders([p.dump.folder for p in plans])
     with atomic_directory(args.out) as tmp:
         for plan, sub in zip(plans, subfolders, strict=True):

@@ -114,7 +114,7 @@ def run_render(args: argparse.Namespace) -> int:
     from core.surface_sample import write_surface_sample
     from core.trajectory import PoseRow, write_trajectory
     from drivers.sim.rig import VirtualRig
-    from drivers.sim.truth import surface_sample
+    from drivers.sim.truth import can_sample, surface_sample
 
     if args.cycles < 1:
         raise InputError(f"--cycles {args.cycles}: must be >= 1")
@@ -151,8 +151,9 @@ def run_render(args: argparse.Namespace) -> int:
     gt = rig.ground_truth
     write_ground_truth(gt, gt_dir)
     if moving and rig.moving_shapes:
-        write_surface_sample(gt_dir / "surface.ply", surface_sample(rig.moving_shapes))
         write_trajectory(gt_dir / "poses.csv", true_poses)
+        if can_sample(rig.moving_shapes):  # (a moving relief, e.g. the face preset, has no closed surface)
+            write_surface_sample(gt_dir / "surface.ply", surface_sample(rig.moving_shapes))
     lit = float(gt.lit.mean())
     w, h = rig.camera_size
     print(

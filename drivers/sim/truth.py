@@ -73,6 +73,14 @@ def _box(half: np.ndarray, spacing: float, rng: np.random.Generator) -> tuple[np
     return np.concatenate(pts), np.concatenate(nrm), np.concatenate(faces)
 
 
+SAMPLED = (Sphere, Ellipsoid, Cylinder, Box)  # the closed shapes whose true surface is sampled
+
+
+def can_sample(shapes: list[Shape]) -> bool:
+    """Whether surface_sample takes every one of shapes (a relief or an open surface has no closed surface)."""
+    return bool(shapes) and all(isinstance(s, SAMPLED) for s in shapes)
+
+
 def _local_sample(s: Shape, spacing: float, rng: np.random.Generator) -> tuple[np.ndarray, ...]:
     if isinstance(s, Sphere):
         return _ellipsoid(np.full(3, float(s.radius)), spacing, rng)

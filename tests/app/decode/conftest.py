@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import subprocess
 import sys
 from pathlib import Path
 
@@ -26,3 +27,15 @@ def small_rig():
         return cache[key]
 
     return make
+
+
+@pytest.fixture(scope="session")
+def run_cli_module():
+    """run(*args) -> the CompletedProcess of `python -m app.cli ARGS` (a fresh process: its own numba state)."""
+
+    def run(*args):
+        return subprocess.run(
+            [sys.executable, "-m", "app.cli", *map(str, args)], capture_output=True, text=True, timeout=300
+        )
+
+    return run

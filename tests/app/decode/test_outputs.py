@@ -39,19 +39,6 @@ def decoded(tmp_path_factory, small_rig, run_cli_module):
     return out
 
 
-@pytest.fixture(scope="module")
-def run_cli_module():
-    import subprocess
-    import sys
-
-    def run(*args):
-        return subprocess.run(
-            [sys.executable, "-m", "app.cli", *map(str, args)], capture_output=True, text=True, timeout=300
-        )
-
-    return run
-
-
 def _angles_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(np.clip(np.sum(a * b, axis=1), -1.0, 1.0)))
 

@@ -47,19 +47,6 @@ def decoded(texture_dump, tmp_path_factory, run_cli_module):
     return out
 
 
-@pytest.fixture(scope="module")
-def run_cli_module():
-    import subprocess
-    import sys
-
-    def run(*args):
-        return subprocess.run(
-            [sys.executable, "-m", "app.cli", *map(str, args)], capture_output=True, text=True, timeout=300
-        )
-
-    return run
-
-
 def test_no_reader_pairs_a_texture_frame(texture_dump):
     dump = read_dump(texture_dump[0])
     assert dump.texture_pattern == 2 and dump.texture_indices() == [0, 4]
