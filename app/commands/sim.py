@@ -50,6 +50,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--out", required=True, metavar="DUMP", help="dump folder to create (must not exist or be empty)")
     r.add_argument("--camera-size", metavar="WxH", help="camera resolution (default 640x480)")
     r.add_argument("--cycles", type=positive_int, default=1, help="pattern cycles to render (default 1)")
+    r.add_argument(
+        "--texture-every",
+        type=positive_int,
+        metavar="N",
+        help="also a white-light texture frame after every N pattern frames (tagged texture_pattern, never paired)",
+    )
     r.add_argument("--ideal", action="store_true", help="no noise, blur, crosstalk, ambient, gamma or shading")
     r.add_argument("--seed", type=non_negative_int, help="noise seed (default 0)")
     r.add_argument(
@@ -109,6 +115,7 @@ def write_ground_truth(gt: object, folder: Path) -> None:
 
 
 def run_render(args: argparse.Namespace) -> int:
+    from app.texture import texture_image, texture_index
     from core.dump import DumpWriter
     from core.patterns import parse_size
     from core.surface_sample import write_surface_sample
@@ -132,22 +139,35 @@ def run_render(args: argparse.Namespace) -> int:
     options = pattern_options(get_scheme(args.scheme), args)
     patterns = make_patterns(args.scheme, rig.projector_size, **options)
     prepared = [rig.prepare(img) for img in patterns.images]
+    every = args.texture_every
+    white = rig.prepare(texture_image(patterns)) if every else None
     extra: dict = {"source": f"slscan sim render --scene {rig.scene.name}"}
     if rig.scene.working_volume_mm is not None:
         extra["working_volume_mm"] = list(rig.scene.working_volume_mm)
     moving = rig.moving
     true_poses = []
     gt_dir = out / "ground_truth"
-    with DumpWriter(out, patterns, rig.calibration, rig.depth_range_mm, extra=extra, mosaic=rig.mosaic) as writer:
+    texture = texture_index(patterns)
+    writer = DumpWriter(
+        out, patterns, rig.calibration, rig.depth_range_mm, extra=extra, mosaic=rig.mosaic, texture=bool(every)
+    )
+    with writer:
         frame_ns = round(1e9 / 60)
         n = 0
+        shown = 0  # pattern frames since the last texture frame
         for _ in range(args.cycles):
             for i, light in enumerate(prepared):
-                rec = writer.add(rig.render(light), pattern=i, frame_id=n + 1, timestamp_ns=n * frame_ns)
-                if moving:  # the scene changes every frame: ground truth per frame as well
-                    write_ground_truth(rig.ground_truth, gt_dir / "frames" / Path(rec.file).stem)
-                    true_poses.append(PoseRow(n, n + 1, "true", np.linalg.inv(rig.object_pose(n))))
-                n += 1
+                steps = [(i, light)]
+                shown += 1
+                if every and shown == every:  # (a texture frame takes a frame of its own: the scene moves on)
+                    steps.append((texture, white))
+                    shown = 0
+                for tag, image in steps:
+                    rec = writer.add(rig.render(image), pattern=tag, frame_id=n + 1, timestamp_ns=n * frame_ns)
+                    if moving:  # the scene changes every frame: ground truth per frame as well
+                        write_ground_truth(rig.ground_truth, gt_dir / "frames" / Path(rec.file).stem)
+                        true_poses.append(PoseRow(n, n + 1, "true", np.linalg.inv(rig.object_pose(n))))
+                    n += 1
     gt = rig.ground_truth
     write_ground_truth(gt, gt_dir)
     if moving and rig.moving_shapes:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import bisect
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -47,7 +48,9 @@ def fuse_dump(
         raise InputError(f"{dump.folder}: a {dump.scheme} dump: fusion takes one-shot or two-shot scans")
     meta = dump.patterns_meta()
     tags = [(f.frame_id, f.pattern) for f in dump.frames]
-    sets, _ = group_frame_sets(tags, dump.scheme, len(meta["images"]), sliding=True)
+    textures = dump.texture_indices()
+    texture_tag = len(meta["images"]) if textures else None
+    sets, _ = group_frame_sets(tags, dump.scheme, len(meta["images"]), sliding=True, texture_pattern=texture_tag)
     if len(sets) < MIN_SCANS:
         raise InputError(f"{dump.folder}: {len(sets)} complete frame set(s): fusion needs at least {MIN_SCANS} scans")
     rng = dump.depth_range_mm() or (100.0, 5000.0)
@@ -64,7 +67,9 @@ def fuse_dump(
             previous = dump.load_frame(fs.previous) if fs.previous is not None else None
             _, depth = dec.stripes_and_depth(frames, fs.newest_index, previous)
             newest = fs.indices[fs.newest_index]
-            scan = fuser.scan(depth, scan_colour(frames), dump.frames[newest].frame_id)
+            k = bisect.bisect_left(textures, fs.first) - 1  # the nearest texture frame before the set colours it
+            texture = dump.load_frame(textures[k]) if k >= 0 else None
+            scan = fuser.scan(depth, scan_colour(frames, texture), dump.frames[newest].frame_id)
             res = fuser.add(scan)
             if progress is not None:
                 progress(n + 1, len(sets))

@@ -144,3 +144,23 @@ def test_fusion_without_open3d_names_the_extra(tmp_path, turntable_dump, capsys,
     monkeypatch.setitem(sys.modules, "open3d", None)  # as if not installed: `import open3d` raises ImportError
     assert main(["fuse", turntable_dump, "--out", str(tmp_path / "m.ply")]) == 2
     assert "slscan[fusion]" in _one_error_line(capsys)
+
+
+def test_texture_frames_colour_the_model_with_the_objects_own_red(tmp_path, turntable_dump, capsys):
+    # the same turn with a white frame after every 3 pattern frames (slscan sim render --texture-every)
+    textured = tmp_path / "tx"
+    argv = [*RENDER, "--scene", "turntable", "--cycles", "6", "--texture-every", "3", "--out", str(textured)]
+    assert main([*argv, "--set", "rotation_deg_per_frame=0.5"]) == 0
+    from core.dump import read_dump
+
+    dump = read_dump(textured)
+    assert [f.pattern for f in dump.frames][:8] == [0, 1, 0, 2, 1, 0, 1, 2]  # (tag 2: the texture frame)
+    red = {}
+    for name, folder in (("pair", turntable_dump), ("texture", textured)):
+        out = tmp_path / f"{name}.ply"
+        assert main(["fuse", str(folder), "--out", str(out), "--voxel-mm", "1", "--min-weight", "2"]) == 0
+        colours = np.asarray(trimesh.load(out, process=False).visual.vertex_colors)[:, :3].astype(float)
+        red[name] = colours[:, 0].mean()
+    assert "fused 8 of 8 scans" in capsys.readouterr().out  # 11 sliding pairs, 3 broken by the texture frames
+    # a two-shot pair never lights red: without texture frames the model's red is the ambient light alone
+    assert red["texture"] > 1.8 * red["pair"], red
