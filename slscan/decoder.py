@@ -42,6 +42,7 @@ class Decoder:
         *,
         segmentation: str | None = None,
         motion: str = "auto",
+        mosaic: str | None = None,
     ) -> None:
         if not isinstance(patterns, PatternSet):
             patterns = read_patterns(patterns)
@@ -54,8 +55,15 @@ class Decoder:
         self.depth_range_mm = tuple(map(float, depth_range_mm or DEFAULT_DEPTH_RANGE_MM))
         meta = {**patterns.params, "scheme": patterns.scheme, "size": list(patterns.size), "images": patterns.names}
         self._decoder = FrameSetDecoder(
-            patterns.scheme, meta, calibration, self.depth_range_mm, segmentation=segmentation, motion=motion
+            patterns.scheme,
+            meta,
+            calibration,
+            self.depth_range_mm,
+            segmentation=segmentation,
+            motion=motion,
+            mosaic=mosaic,
         )
+        self.mosaic = self._decoder.mosaic  # (checked: one of RGGB, GRBG, GBRG, BGGR, or None)
         self._check_bgr = channel_order_matters(patterns.images)
 
     @classmethod
@@ -65,6 +73,7 @@ class Decoder:
             raise InputError(
                 f"{dump.path}: the dump has no calibration: use Decoder(dump.patterns, CALIBRATION_FILE, RANGE)"
             )
+        options.setdefault("mosaic", dump.mosaic)
         return cls(dump.patterns, dump.calibration, dump.depth_range_mm, **options)  # type: ignore[arg-type]
 
     @property
@@ -81,18 +90,25 @@ class Decoder:
         *,
         newest: int | None = None,
         previous: np.ndarray | None = None,
+        texture: np.ndarray | None = None,
         where: str = "frames",
     ) -> Scan:
         """A Scan of one frame set: RGB frames (H x W x 3, uint8 or uint16) in pattern order, frames[p] saw
         pattern p. newest (the pattern index of the frame taken last) and previous (the frame taken just before the
-        set) enable two-shot motion handling; a FrameSet from a dump carries both. Bad frames (number, shape, dtype,
-        size, BGR channel order) are an InputError naming the frame."""
+        set) enable two-shot motion handling; texture (a white-light frame) colours the scan, else the set's own
+        frames do; a FrameSet from a dump carries all three. With the decoder's mosaic known, frames may be raw
+        one-channel Bayer frames. Bad frames (number, shape, dtype, size, BGR channel order) are an InputError
+        naming the frame."""
         if isinstance(frames, FrameSet):
             newest = frames.newest if newest is None else newest
             previous = frames.previous if previous is None else previous
-        images = check_frames(frames, self.frames_per_set, self.calibration.camera_size, where)
+            texture = frames.texture if texture is None else texture
+        size, mosaic = self.calibration.camera_size, self.mosaic
+        images = self._decoder.rgb(check_frames(frames, self.frames_per_set, size, where, mosaic))
         if previous is not None:
-            previous = check_frames([previous], 1, self.calibration.camera_size, f"{where} (previous)")[0]
+            previous = self._decoder.rgb_frame(check_frames([previous], 1, size, f"{where} (previous)", mosaic)[0])
+        if texture is not None:
+            texture = self._decoder.rgb_frame(check_frames([texture], 1, size, f"{where} (texture)", mosaic)[0])
         stripes, depth = self._decoder.stripes_and_depth(images, newest, previous)
         n_valid = int(stripes.valid.sum())
         if self._check_bgr and n_valid < BGR_CHECK_BELOW * stripes.valid.size:
@@ -101,7 +117,8 @@ class Decoder:
                 raise InputError(bgr_message(where, n_valid, swapped))
         if n_valid == 0:
             warnings.warn(f"{where}: nothing decoded: {self._decoder.empty_reason()}", EmptyResultWarning, stacklevel=2)
-        texture = images[0] if len(images) != 2 else average_frames_of(images[0], images[1])  # stripes cancel
+        if texture is None:
+            texture = images[0] if len(images) != 2 else average_frames_of(images[0], images[1])  # stripes cancel
         return Scan(
             depth,
             stripes.column,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import bisect
 import os
 from collections.abc import Iterator, Sequence
 from functools import cached_property
@@ -25,6 +26,7 @@ class Dump:
         self.path: Path = index.folder
         self.scheme: str = index.scheme
         self.depth_range_mm: tuple[float, float] | None = index.depth_range_mm()
+        self.mosaic: str | None = index.mosaic  # the Bayer mosaic of raw one-channel frames, None for RGB
 
     @cached_property
     def patterns(self) -> PatternSet:
@@ -45,18 +47,22 @@ class Dump:
 
     def frame_sets(self, *, sliding: bool = True) -> FrameSets:
         """The complete frame sets, in capture order, from the frames' tags (a frame-id gap or a wrong tag is never
-        paired). Two-shot pairs slide (frames 1-2, 2-3, ...) unless sliding=False (1-2, 3-4, ...)."""
+        paired; white-light texture frames belong to no set, each set carries the nearest one before it as its
+        `texture`). Two-shot pairs slide (frames 1-2, 2-3, ...) unless sliding=False (1-2, 3-4, ...)."""
         tags = [(f.frame_id, f.pattern) for f in self._index.frames]
-        sets, _ = group_frame_sets(tags, self.scheme, len(self.patterns), sliding=sliding)
-        return FrameSets(self._index, sets)
+        textures = self._index.texture_indices()  # (checks the dump's texture tag)
+        n = len(self.patterns)
+        sets, _ = group_frame_sets(tags, self.scheme, n, sliding=sliding, texture_pattern=n if textures else None)
+        return FrameSets(self._index, sets, textures)
 
 
 class FrameSets(Sequence[FrameSet]):
     """The frame sets of a dump: a sequence whose items are read from disk when taken."""
 
-    def __init__(self, index: _DumpIndex, sets: list[FrameIndexSet]) -> None:
+    def __init__(self, index: _DumpIndex, sets: list[FrameIndexSet], textures: list[int]) -> None:
         self._index = index
         self._sets = sets
+        self._textures = textures  # frame indices of the texture frames, in capture order
 
     def __len__(self) -> int:
         return len(self._sets)
@@ -78,12 +84,15 @@ class FrameSets(Sequence[FrameSet]):
         index = self._index
         records = [index.frames[i] for i in s.indices]
         previous = index.load_frame(s.previous) if s.previous is not None else None
+        k = bisect.bisect_left(self._textures, s.first) - 1  # the nearest texture frame taken before the set
+        texture = index.load_frame(self._textures[k]) if k >= 0 else None
         return FrameSet(
             [index.load_frame(i) for i in s.indices],
             frame_ids=[r.frame_id for r in records],
             timestamps_ns=[r.timestamp_ns for r in records],
             newest=s.newest_index,
             previous=previous,
+            texture=texture,
         )
 
 

@@ -12,10 +12,15 @@ DTYPES = (np.uint8, np.uint16)
 
 
 def check_frames(
-    frames: Sequence[np.ndarray], shots: int, camera_size: tuple[int, int], where: str = "frames"
+    frames: Sequence[np.ndarray],
+    shots: int,
+    camera_size: tuple[int, int],
+    where: str = "frames",
+    mosaic: str | None = None,
 ) -> list[np.ndarray]:
-    """The frames as C-contiguous RGB arrays, or InputError: their number, array type, shape (H x W x 3), dtype
-    (uint8 or uint16, one for all) and size (the calibration's camera_size)."""
+    """The frames as C-contiguous arrays, or InputError: their number, array type, shape (H x W x 3 RGB, or H x W
+    raw Bayer frames where the camera's mosaic is known), dtype (uint8 or uint16, one for all) and size (the
+    calibration's camera_size)."""
     if isinstance(frames, np.ndarray) and frames.ndim == 3:
         raise InputError(f"{where}: one image given; pass a list of {shots} frame(s) in pattern order")
     try:
@@ -30,10 +35,14 @@ def check_frames(
         if not isinstance(f, np.ndarray):
             raise InputError(f"{name} is a {type(f).__name__}, not a numpy array (H x W x 3 RGB)")
         if f.ndim == 2:
-            raise InputError(f"{name} is a grey image ({f.shape[1]}x{f.shape[0]}): the decoder needs RGB H x W x 3")
-        if f.ndim != 3 or f.shape[2] not in (3, 4):
+            if mosaic is None:
+                raise InputError(
+                    f"{name} is a grey image ({f.shape[1]}x{f.shape[0]}): the decoder needs RGB H x W x 3, or a raw "
+                    "Bayer frame with the camera's mosaic named (Decoder(..., mosaic='RGGB'))"
+                )
+        elif f.ndim != 3 or f.shape[2] not in (3, 4):
             raise InputError(f"{name} has shape {f.shape}: expected H x W x 3 (RGB)")
-        if f.shape[2] == 4:
+        elif f.shape[2] == 4:
             raise InputError(f"{name} has 4 channels: pass the three colour channels in RGB order (frame[..., :3])")
         if f.dtype not in DTYPES:
             raise InputError(f"{name} has dtype {f.dtype}: expected uint8 or uint16 camera values, not scaled")
