@@ -27,7 +27,9 @@ def _render(out: Path, scene: str, size: str, *extra: str) -> Path:
 @pytest.fixture(scope="module")
 def texture_dump(tmp_path_factory) -> Path:
     """The cube (saturated stickers), 3 cycles with a texture frame after every 2 pattern frames."""
-    return _render(tmp_path_factory.mktemp("api-tex") / "cube", "cube", "320x240", "--cycles", "3", "--texture-every", "2")
+    return _render(
+        tmp_path_factory.mktemp("api-tex") / "cube", "cube", "320x240", "--cycles", "3", "--texture-every", "2"
+    )
 
 
 @pytest.fixture(scope="module")
