@@ -1,7 +1,8 @@
 """A subscriber process for the depth-stream tests: `python stream_subscriber.py ADDRESS OUT.npz [STALL_S] [points]`.
 
-Connects, prints "ready", stays away for STALL_S seconds (a stalled subscriber: it reads nothing meanwhile), then
-reads until the stream's end message (or 15 s without a scan) and saves what it received to OUT.npz.
+Connects, prints "ready", waits for the first scan, then stays away for STALL_S seconds (a stalled subscriber: it
+reads nothing meanwhile, while the session is publishing, however long the session took to start), then reads
+until the stream's end message (or 15 s without a scan) and saves what it received to OUT.npz.
 """
 
 from __future__ import annotations
@@ -25,8 +26,8 @@ def main() -> None:
     last = None
     with slscan.Subscriber(address, points=points, timeout_s=15.0) as sub:
         print("ready", flush=True)
-        time.sleep(stall_s)
         first = sub.receive(timeout_s=120.0)  # the session compiles or loads its decoder first
+        time.sleep(stall_s)
         scans = [first] if first is not None else []
         for scan in (*scans, *sub) if scans else ():
             rows.append((scan.sequence, max(scan.frame_ids), min(scan.frame_ids), scan.dropped, scan.latency_ms))

@@ -96,7 +96,7 @@ def test_a_subscriber_process_receives_every_scan_of_a_live_session(tmp_path, sm
 
 
 def test_a_stalled_subscriber_does_not_slow_the_session_and_sees_its_losses(tmp_path, small_config):
-    frames = 300  # 5 s at 60 Hz; the subscriber reads nothing for the first 3 s
+    frames = 300  # 5 s at 60 Hz; the subscriber reads nothing for 3 s after the first scan
     _, alone = live(small_config, frames, tmp_path / "alone")
     address = f"tcp://127.0.0.1:{free_port()}"
     sub = start_subscriber(address, tmp_path / "got.npz", stall_s=3.0)
