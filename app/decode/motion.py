@@ -37,8 +37,8 @@ class MotionParams:
     narrow_radius: int = 4
     wide_radius: int = 9
     narrow_share: float = 0.6
-    spread: int = 4  # a moving pixel marks this many neighbours either side along the row (stripe edges near it)
-    change_rel: float = 0.5  # a change must exceed this share of the local contrast (hi - lo) ...
+    spread: int = 5  # a moving pixel marks this many neighbours either side along the row (stripe edges near it)
+    change_rel: float = 0.6  # a change must exceed this share of the local contrast (hi - lo) ...
     change_noise: float = 8.0  # ... this multiple of the two frames' noise slopes (linear per raw 8-bit step) ...
     change_floor: float = 8.0  # ... and this many linear 8-bit units (dark surfaces' noise, compressed by gamma)
 
