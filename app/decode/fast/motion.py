@@ -42,25 +42,28 @@ def repair_older(
     (app.decode.motion.inverse_table). watched: the camera channels (int64) whose change marks motion (the
     pattern's). limits: float32 (share of the local contrast, multiple of the noise slopes, floor in linear 8-bit
     units) a change must exceed, then the share of the wide window's contrast the narrow window must keep to be
-    used. radii: int64 (narrow, wide) half-widths of the envelope windows along the row; spread: how far along the
-    row a moving pixel's mark reaches."""
+    used, then the share of their sum and the floor within which the two frames' local means must agree to be
+    used. radii: int64 (narrow, wide) half-widths of the envelope windows along the row, then that of the local
+    means; spread: how far along the row a moving pixel's mark reaches."""
     newest, older, previous = frames
     H, W, C = newest.shape
-    rows = np.empty((5 * C + 8, W), np.float32)  # the row loop's scratch rows
-    # table indices and gathered values: C rows of int32, a row of int64 (a pair table's entries)
-    lookups = (np.empty((C, W), np.int32), np.empty(W, np.int64))
+    rows = np.empty((7 * C + 9, W), np.float32)  # the row loop's scratch rows
+    # table indices and gathered values: C rows of int32, a row of int64 (a pair table's entries); the running
+    # sums of the newest and the older frame's linear values along the row, float64
+    lookups = (np.empty((C, W), np.int32), np.empty(W, np.int64), np.empty((2, W + 1), np.float64))
     flat = (older.reshape(H, W * C), out.reshape(H, W * C))  # (the rows' copy as one vector loop)
-    return _repair_rows((newest, previous), tables, watched, limits, radii, spread, rows, lookups, flat, out)
+    return _repair_rows((newest, previous, older), tables, watched, limits, radii, spread, rows, lookups, flat, out)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, flat, out):
     """repair_older's loop over the rows, without reference counting (its arrays all belong to the caller). Table
     reads go through `gather` (indices first, into plain rows): the loops around them then vectorise."""
-    newest, previous = frames
+    newest, previous, older = frames
     lin, dlin, pairs, inverse, grid = tables
     H, W, C = newest.shape
     rel, noise_k, floor, narrow_share = limits[0], limits[1], limits[2], limits[3]
+    mean_share, mean_floor = limits[4], limits[5]
     ln = rows[0:C]  # the newest frame's linear values, channel-planar
     hi = rows[C : 2 * C]  # their extremes over the envelope window
     lo = rows[2 * C : 3 * C]
@@ -71,7 +74,10 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, 
     moving = rows[3 * C + 7]
     changes = rows[3 * C + 8 : 4 * C + 8]  # |newest - previous|, linear, per watched channel
     slopes = rows[4 * C + 8 : 5 * C + 8]  # the newest and the previous frame's noise slopes summed, per watched channel
-    index, entries = lookups
+    means_new = rows[5 * C + 8 : 6 * C + 8]  # the newest frame's local means, per channel
+    means_old = rows[6 * C + 8 : 7 * C + 8]  # the older frame's
+    agree = rows[7 * C + 8]  # 1 where the two frames' local means agree in every watched channel, else 0
+    index, entries, sums = lookups
     entry_halves = entries.view(np.float32)
     shared_pairs = pairs.shape[0] == PAIR_ENTRIES  # (one pair table for the three channels)
     older_flat, out_flat = flat
@@ -125,12 +131,17 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, 
         n = b - a
         reach = max(radii[0], radii[1])
         e, f = max(a - reach, 0), min(b + reach, W)
+        rm = radii[2]
+        g = min(b + rm, W)  # (the local means' sums run from the row's start: the same sums in every span)
+        f_all = max(f, g)
+        agree_ab = agree[a:b]
+        _fill(agree_ab, 1.0)
         for c in range(C):
             lnc, hic, loc = ln[c, e:f], hi[c, e:f], lo[c, e:f]
-            at = index[c, e:f]
-            for x in range(f - e):
-                at[x] = newest[y, e + x, c]
-            gather(lnc, lin[c], at, f - e)
+            at = index[c, :f_all]
+            for x in range(f_all):
+                at[x] = newest[y, x, c]
+            gather(ln[c, :f_all], lin[c], at, f_all)
             # the narrow window where it holds both levels of the channel (its contrast a share of the wide
             # window's), else the wide one: a narrow window reaches across fewer albedo and depth edges
             spans_ef = (spans[0, e:f], spans[1, e:f], spans[2, e:f], spans[3, e:f])
@@ -140,6 +151,26 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, 
                 narrow = hic[x] - loc[x] >= narrow_share * (whi[x] - wlo[x])
                 hic[x] = hic[x] if narrow else whi[x]
                 loc[x] = loc[x] if narrow else wlo[x]
+            # the local means of the newest and the older frame over the window clipped at the row's ends
+            older_lin = changed[:g]  # (changed is free until the change test below)
+            for x in range(g):
+                at[x] = older[y, x, c]
+            gather(older_lin, lin[c], at, g)
+            _running_sums(ln[c], older_lin, g, sums[0], sums[1])
+            mn, mo = means_new[c, a:b], means_old[c, a:b]
+            _window_means(sums[0], a, b, -rm, rm, W, mn)
+            _window_means(sums[1], a, b, -rm, rm, W, mo)
+            # Where the two frames' local means agree (the surface's level unchanged across the window) their sum
+            # is the channel's local sum of both levels, balanced whatever the code: it replaces the envelope's
+            # hi + lo there. The means over the window's two halves must agree too: a silhouette or an albedo edge
+            # that moved inside the window changes one half's level while the whole's may stay within the share.
+            if _is_watched(watched, c):
+                _agree_into(mn, mo, mean_share, mean_floor, agree_ab)
+                for lo_off, hi_off in ((-rm, 0), (0, rm)):
+                    half_new, half_old = changed[a:b], moving[a:b]  # (free until the change test below)
+                    _window_means(sums[0], a, b, lo_off, hi_off, W, half_new)
+                    _window_means(sums[1], a, b, lo_off, hi_off, W, half_old)
+                    _agree_into(half_new, half_old, mean_share, mean_floor, agree_ab)
         changed_ab, moving_ab = changed[a:b], moving[a:b]
         _fill(changed_ab, 0.0)
         for i in range(watched.shape[0]):
@@ -164,8 +195,10 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, 
         first, per_unit = grid[0], grid[1]
         for c in range(C):
             hic, loc, lnc, at = hi[c, a:b], lo[c, a:b], ln[c, a:b], index[c, a:b]
+            mn, mo = means_new[c, a:b], means_old[c, a:b]
             for x in range(n):
-                at[x] = inverse_bin(hic[x] + loc[x] - lnc[x], first, per_unit, last_bin)
+                both = mn[x] + mo[x] if agree_ab[x] != 0 else hic[x] + loc[x]
+                at[x] = inverse_bin(both - lnc[x], first, per_unit, last_bin)
             gather(at, inverse[c], at, n)  # (in place: each lane reads its index before its value is stored)
         if C == 3:  # the three channels of a pixel in one iteration: whole interleaved stores
             v0, v1, v2 = index[0, a:b], index[1, a:b], index[2, a:b]
@@ -183,6 +216,46 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, 
         for x in range(n):
             n_moving += moving_ab[x] != 0
     return n_moving
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _running_sums(u, v, n, su, sv):
+    """su[k] = u[0] + ... + u[k - 1] in float64, added in that order, for k <= n; the same of v into sv."""
+    su[0] = 0.0
+    sv[0] = 0.0
+    acc_u = 0.0
+    acc_v = 0.0
+    for x in range(n):
+        acc_u += np.float64(u[x])
+        acc_v += np.float64(v[x])
+        su[x + 1] = acc_u
+        sv[x + 1] = acc_v
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _window_means(sums, a, b, lo_off, hi_off, W, out):
+    """out[x - a] = the mean over [x + lo_off, x + hi_off] clipped at the row's ends [0, W), for x in [a, b), from
+    the running sums (float64, cast to float32 last)."""
+    for x in range(a, b):
+        first = max(x + lo_off, 0)
+        last = min(x + hi_off + 1, W)
+        out[x - a] = np.float32((sums[last] - sums[first]) / np.float64(last - first))
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _agree_into(u, v, share, floor, agree):
+    """agree[x] = 0 where |u[x] - v[x]| > share (u[x] + v[x]) + floor (two frames' local means disagree)."""
+    for x in range(agree.shape[0]):
+        ok = abs(u[x] - v[x]) <= share * (u[x] + v[x]) + floor
+        agree[x] = agree[x] if ok else np.float32(0.0)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _is_watched(watched, c):
+    for i in range(watched.shape[0]):
+        if watched[i] == c:
+            return True
+    return False
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
