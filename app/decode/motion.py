@@ -37,16 +37,23 @@ class MotionParams:
     narrow_radius: int = 4
     wide_radius: int = 9
     narrow_share: float = 0.6
-    spread: int = 4  # a moving pixel marks this many neighbours either side along the row (stripe edges near it)
-    change_rel: float = 0.5  # a change must exceed this share of the local contrast (hi - lo) ...
+    spread: int = 5  # a moving pixel marks this many neighbours either side along the row (stripe edges near it)
+    change_rel: float = 0.6  # a change must exceed this share of the local contrast (hi - lo) ...
     change_noise: float = 8.0  # ... this multiple of the two frames' noise slopes (linear per raw 8-bit step) ...
-    change_floor: float = 8.0  # ... and this many linear 8-bit units (dark surfaces' noise, compressed by gamma)
+    change_floor: float = 5.0  # ... and this many linear 8-bit units (dark surfaces' noise, compressed by gamma)
+    # Where the newest and the older frame's local means along the row (half-width mean_radius, and over each half
+    # of that window) agree within mean_share of their sum plus mean_floor linear units in every watched channel,
+    # the pair's sum of both levels comes from those means instead of the newest frame's envelope.
+    mean_radius: int = 12
+    mean_share: float = 0.35
+    mean_floor: float = 2.0
 
     def limits(self) -> np.ndarray:
-        return np.array([self.change_rel, self.change_noise, self.change_floor, self.narrow_share], np.float32)
+        change = [self.change_rel, self.change_noise, self.change_floor]
+        return np.array([*change, self.narrow_share, self.mean_share, self.mean_floor], np.float32)
 
     def radii(self) -> np.ndarray:
-        return np.array([self.narrow_radius, self.wide_radius], np.int64)
+        return np.array([self.narrow_radius, self.wide_radius, self.mean_radius], np.int64)
 
 
 def check_motion_mode(value: object, where: str) -> str:
@@ -151,8 +158,25 @@ def repair_reference(
     for o in range(1, params.spread + 1):
         moving[:, : W - o] |= changed[:, o:]
         moving[:, o:] |= changed[:, : W - o]
+    lo_ = lin[ch, older]
+
+    def window_means(v: np.ndarray, lo_off: int, hi_off: int) -> np.ndarray:  # windows clipped at the row's ends
+        sums = np.zeros((v.shape[0], W + 1, 3))
+        sums[:, 1:] = np.cumsum(v.astype(np.float64), axis=1)
+        x = np.arange(W)
+        first, last = np.maximum(x + lo_off, 0), np.minimum(x + hi_off + 1, W)
+        return ((sums[:, last] - sums[:, first]) / (last - first)[None, :, None]).astype(np.float32)
+
+    r = params.mean_radius
+    agree = np.ones(newest.shape[:2], bool)
+    for lo_off, hi_off in ((-r, r), (-r, 0), (0, r)):  # the window, then its halves
+        mn, mo = window_means(ln, lo_off, hi_off), window_means(lo_, lo_off, hi_off)
+        limit = np.float32(params.mean_share) * (mn + mo) + np.float32(params.mean_floor)
+        agree &= (np.abs(mn - mo) <= limit)[..., w].all(axis=2)
+    mn, mo = window_means(ln, -r, r), window_means(lo_, -r, r)
+    both = np.where(agree[..., None], mn + mo, hi + lo)  # the pair's sum of both levels
     inverse, grid = inverse_table(lin)
-    target = hi + lo - ln  # the newest frame's inverse about the envelope, in linear units
+    target = both - ln  # the newest frame's inverse about that sum, in linear units
     bins = np.clip(((target - grid[0]) * grid[1] + np.float32(0.5)).astype(np.int64), 0, int(grid[2]) - 1)
     out = older.copy()
     for c in range(3):

@@ -42,25 +42,28 @@ def repair_older(
     (app.decode.motion.inverse_table). watched: the camera channels (int64) whose change marks motion (the
     pattern's). limits: float32 (share of the local contrast, multiple of the noise slopes, floor in linear 8-bit
     units) a change must exceed, then the share of the wide window's contrast the narrow window must keep to be
-    used. radii: int64 (narrow, wide) half-widths of the envelope windows along the row; spread: how far along the
-    row a moving pixel's mark reaches."""
+    used, then the share of their sum and the floor within which the two frames' local means must agree to be
+    used. radii: int64 (narrow, wide) half-widths of the envelope windows along the row, then that of the local
+    means; spread: how far along the row a moving pixel's mark reaches."""
     newest, older, previous = frames
     H, W, C = newest.shape
-    rows = np.empty((5 * C + 8, W), np.float32)  # the row loop's scratch rows
-    # table indices and gathered values: C rows of int32, a row of int64 (a pair table's entries)
-    lookups = (np.empty((C, W), np.int32), np.empty(W, np.int64))
+    rows = np.empty((7 * C + 9, W), np.float32)  # the row loop's scratch rows
+    # table indices and gathered values: C rows of int32, a row of int64 (a pair table's entries); the running
+    # sums of the newest and the older frame's linear values along the row, float64
+    lookups = (np.empty((C, W), np.int32), np.empty(W, np.int64), np.empty((2, W + 1), np.float64))
     flat = (older.reshape(H, W * C), out.reshape(H, W * C))  # (the rows' copy as one vector loop)
-    return _repair_rows((newest, previous), tables, watched, limits, radii, spread, rows, lookups, flat, out)
+    return _repair_rows((newest, previous, older), tables, watched, limits, radii, spread, rows, lookups, flat, out)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, flat, out):
     """repair_older's loop over the rows, without reference counting (its arrays all belong to the caller). Table
     reads go through `gather` (indices first, into plain rows): the loops around them then vectorise."""
-    newest, previous = frames
+    newest, previous, older = frames
     lin, dlin, pairs, inverse, grid = tables
     H, W, C = newest.shape
     rel, noise_k, floor, narrow_share = limits[0], limits[1], limits[2], limits[3]
+    mean_share, mean_floor = limits[4], limits[5]
     ln = rows[0:C]  # the newest frame's linear values, channel-planar
     hi = rows[C : 2 * C]  # their extremes over the envelope window
     lo = rows[2 * C : 3 * C]
@@ -71,7 +74,10 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, 
     moving = rows[3 * C + 7]
     changes = rows[3 * C + 8 : 4 * C + 8]  # |newest - previous|, linear, per watched channel
     slopes = rows[4 * C + 8 : 5 * C + 8]  # the newest and the previous frame's noise slopes summed, per watched channel
-    index, entries = lookups
+    means_new = rows[5 * C + 8 : 6 * C + 8]  # the newest frame's local means, per channel
+    means_old = rows[6 * C + 8 : 7 * C + 8]  # the older frame's
+    agree = rows[7 * C + 8]  # 1 where the two frames' local means agree in every watched channel, else 0
+    index, entries, sums = lookups
     entry_halves = entries.view(np.float32)
     shared_pairs = pairs.shape[0] == PAIR_ENTRIES  # (one pair table for the three channels)
     older_flat, out_flat = flat
@@ -81,6 +87,7 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, 
         # the changes first, and the test without its share of the local contrast: a row in which no two pixels
         # pass it has no moving pixel, and needs no envelope (most rows of a still scene)
         candidates = 0
+        first_candidate = 0
         for i in range(watched.shape[0]):
             c = watched[i]
             change, slope_sum = changes[i], slopes[i]
@@ -106,61 +113,158 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, 
                 candidates += 1 if change[x] > max(noise_k * slope_sum[x], floor) else 0
         if candidates < 2:
             continue
+        # (the span's ends by scans that stop at the first candidate: the counting loop above stays vectorised)
+        while first_candidate < W and not _candidate(
+            changes, slopes, watched.shape[0], first_candidate, noise_k, floor
+        ):
+            first_candidate += 1
+        last_candidate = W - 1
+        while last_candidate > first_candidate and not _candidate(
+            changes, slopes, watched.shape[0], last_candidate, noise_k, floor
+        ):
+            last_candidate -= 1
+        # A changed pixel is a candidate, and a moving one lies within spread of a changed one: the row's work from
+        # here is over the span [a, b) around its candidates, the envelopes over the pixels whose windows reach
+        # into it, [e, f). Within [a, b) every result is the whole row's: the windows are clipped at the same
+        # row ends, and outside it nothing changed (the neighbour test and the spread there see zeros either way).
+        a, b = max(first_candidate - spread, 0), min(last_candidate + spread + 1, W)
+        n = b - a
+        reach = max(radii[0], radii[1])
+        e, f = max(a - reach, 0), min(b + reach, W)
+        rm = radii[2]
+        g = min(b + rm, W)  # (the local means' sums run from the row's start: the same sums in every span)
+        f_all = max(f, g)
+        agree_ab = agree[a:b]
+        _fill(agree_ab, 1.0)
         for c in range(C):
-            lnc, hic, loc = ln[c], hi[c], lo[c]
-            at = index[c]
-            for x in range(W):
+            lnc, hic, loc = ln[c, e:f], hi[c, e:f], lo[c, e:f]
+            at = index[c, :f_all]
+            for x in range(f_all):
                 at[x] = newest[y, x, c]
-            gather(lnc, lin[c], at, W)
+            gather(ln[c, :f_all], lin[c], at, f_all)
             # the narrow window where it holds both levels of the channel (its contrast a share of the wide
             # window's), else the wide one: a narrow window reaches across fewer albedo and depth edges
-            _envelopes(lnc, radii[0], radii[1], hic, loc, wide_hi, wide_lo, spans)
-            for x in range(W):
-                narrow = hic[x] - loc[x] >= narrow_share * (wide_hi[x] - wide_lo[x])
-                hic[x] = hic[x] if narrow else wide_hi[x]
-                loc[x] = loc[x] if narrow else wide_lo[x]
-        _fill(changed, 0.0)
+            spans_ef = (spans[0, e:f], spans[1, e:f], spans[2, e:f], spans[3, e:f])
+            _envelopes(lnc, radii[0], radii[1], hic, loc, wide_hi[e:f], wide_lo[e:f], spans_ef)
+            hic, loc, whi, wlo = hi[c, a:b], lo[c, a:b], wide_hi[a:b], wide_lo[a:b]
+            for x in range(n):
+                narrow = hic[x] - loc[x] >= narrow_share * (whi[x] - wlo[x])
+                hic[x] = hic[x] if narrow else whi[x]
+                loc[x] = loc[x] if narrow else wlo[x]
+            # the local means of the newest and the older frame over the window clipped at the row's ends
+            older_lin = changed[:g]  # (changed is free until the change test below)
+            for x in range(g):
+                at[x] = older[y, x, c]
+            gather(older_lin, lin[c], at, g)
+            _running_sums(ln[c], older_lin, g, sums[0], sums[1])
+            mn, mo = means_new[c, a:b], means_old[c, a:b]
+            _window_means(sums[0], a, b, -rm, rm, W, mn)
+            _window_means(sums[1], a, b, -rm, rm, W, mo)
+            # Where the two frames' local means agree (the surface's level unchanged across the window) their sum
+            # is the channel's local sum of both levels, balanced whatever the code: it replaces the envelope's
+            # hi + lo there. The means over the window's two halves must agree too: a silhouette or an albedo edge
+            # that moved inside the window changes one half's level while the whole's may stay within the share.
+            if _is_watched(watched, c):
+                _agree_into(mn, mo, mean_share, mean_floor, agree_ab)
+                for lo_off, hi_off in ((-rm, 0), (0, rm)):
+                    half_new, half_old = changed[a:b], moving[a:b]  # (free until the change test below)
+                    _window_means(sums[0], a, b, lo_off, hi_off, W, half_new)
+                    _window_means(sums[1], a, b, lo_off, hi_off, W, half_old)
+                    _agree_into(half_new, half_old, mean_share, mean_floor, agree_ab)
+        changed_ab, moving_ab = changed[a:b], moving[a:b]
+        _fill(changed_ab, 0.0)
         for i in range(watched.shape[0]):
             c = watched[i]
-            change, slope_sum = changes[i], slopes[i]
-            hic, loc = hi[c], lo[c]
-            for x in range(W):
+            change, slope_sum = changes[i, a:b], slopes[i, a:b]
+            hic, loc = hi[c, a:b], lo[c, a:b]
+            for x in range(n):
                 limit = max(rel * (hic[x] - loc[x]), noise_k * slope_sum[x], floor)
                 u = np.float32(1.0) if change[x] > limit else np.float32(0.0)
-                changed[x] = u if u > changed[x] else changed[x]
+                changed_ab[x] = u if u > changed_ab[x] else changed_ab[x]
         # a change counts where a neighbour along the row changed too: noise is per pixel, a moving edge is not
-        _fill(moving, 0.0)
-        _max_inplace(moving[: W - 1], changed[1:])
-        _max_inplace(moving[1:], changed[: W - 1])
-        _min_inplace(changed, moving)
-        _copy_into(changed, moving)
-        for o in range(1, min(spread, W - 1) + 1):
-            _max_inplace(moving[: W - o], changed[o:])
-            _max_inplace(moving[o:], changed[: W - o])
+        _fill(moving_ab, 0.0)
+        _max_inplace(moving_ab[: n - 1], changed_ab[1:])
+        _max_inplace(moving_ab[1:], changed_ab[: n - 1])
+        _min_inplace(changed_ab, moving_ab)
+        _copy_into(changed_ab, moving_ab)
+        for o in range(1, min(spread, n - 1) + 1):
+            _max_inplace(moving_ab[: n - o], changed_ab[o:])
+            _max_inplace(moving_ab[o:], changed_ab[: n - o])
         # every pixel's inverse computed and kept where the pixel moves (a select, not a branch: vectorised)
         last_bin = np.float32(grid[2] - 1)
         first, per_unit = grid[0], grid[1]
         for c in range(C):
-            hic, loc, lnc, at = hi[c], lo[c], ln[c], index[c]
-            for x in range(W):
-                at[x] = inverse_bin(hic[x] + loc[x] - lnc[x], first, per_unit, last_bin)
-            gather(at, inverse[c], at, W)  # (in place: each lane reads its index before its value is stored)
+            hic, loc, lnc, at = hi[c, a:b], lo[c, a:b], ln[c, a:b], index[c, a:b]
+            mn, mo = means_new[c, a:b], means_old[c, a:b]
+            for x in range(n):
+                both = mn[x] + mo[x] if agree_ab[x] != 0 else hic[x] + loc[x]
+                at[x] = inverse_bin(both - lnc[x], first, per_unit, last_bin)
+            gather(at, inverse[c], at, n)  # (in place: each lane reads its index before its value is stored)
         if C == 3:  # the three channels of a pixel in one iteration: whole interleaved stores
-            v0, v1, v2 = index[0], index[1], index[2]
-            row = out[y]
-            for x in range(W):
-                keep = moving[x] == 0
+            v0, v1, v2 = index[0, a:b], index[1, a:b], index[2, a:b]
+            row = out[y, a:b]
+            for x in range(n):
+                keep = moving_ab[x] == 0
                 row[x, 0] = row[x, 0] if keep else v0[x]
                 row[x, 1] = row[x, 1] if keep else v1[x]
                 row[x, 2] = row[x, 2] if keep else v2[x]
         else:
             for c in range(C):
-                vc = index[c]
-                for x in range(W):
-                    out[y, x, c] = out[y, x, c] if moving[x] == 0 else vc[x]
-        for x in range(W):
-            n_moving += moving[x] != 0
+                vc = index[c, a:b]
+                for x in range(n):
+                    out[y, a + x, c] = out[y, a + x, c] if moving_ab[x] == 0 else vc[x]
+        for x in range(n):
+            n_moving += moving_ab[x] != 0
     return n_moving
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _running_sums(u, v, n, su, sv):
+    """su[k] = u[0] + ... + u[k - 1] in float64, added in that order, for k <= n; the same of v into sv."""
+    su[0] = 0.0
+    sv[0] = 0.0
+    acc_u = 0.0
+    acc_v = 0.0
+    for x in range(n):
+        acc_u += np.float64(u[x])
+        acc_v += np.float64(v[x])
+        su[x + 1] = acc_u
+        sv[x + 1] = acc_v
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _window_means(sums, a, b, lo_off, hi_off, W, out):
+    """out[x - a] = the mean over [x + lo_off, x + hi_off] clipped at the row's ends [0, W), for x in [a, b), from
+    the running sums (float64, cast to float32 last)."""
+    for x in range(a, b):
+        first = max(x + lo_off, 0)
+        last = min(x + hi_off + 1, W)
+        out[x - a] = np.float32((sums[last] - sums[first]) / np.float64(last - first))
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _agree_into(u, v, share, floor, agree):
+    """agree[x] = 0 where |u[x] - v[x]| > share (u[x] + v[x]) + floor (two frames' local means disagree)."""
+    for x in range(agree.shape[0]):
+        ok = abs(u[x] - v[x]) <= share * (u[x] + v[x]) + floor
+        agree[x] = agree[x] if ok else np.float32(0.0)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _is_watched(watched, c):
+    for i in range(watched.shape[0]):
+        if watched[i] == c:
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _candidate(changes, slopes, n_watched, x, noise_k, floor):
+    """Whether pixel x passes the change test without its share of the local contrast in a watched channel."""
+    for i in range(n_watched):
+        if changes[i, x] > max(noise_k * slopes[i, x], floor):
+            return True
+    return False
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -168,12 +272,12 @@ def _envelopes(row, r1, r2, hi1, lo1, hi2, lo2, spans):
     """hi1[x] = max(row[x - r1 : x + r1 + 1]) and lo1[x] = the min, the window clipped at the row's ends, and the
     same over r2 into hi2, lo2. Inside the row from spans doubled to the largest power of two p in each
     window (a sparse table: two reads per pixel), one table for both windows: the wider's spans go on from the
-    narrower's. spans (4, W) float32 scratch, each pass from one pair of rows into the other; the pixels whose
-    window the row's ends cut short are done directly."""
+    narrower's. spans: four float32 scratch rows of the row's length, each pass from one pair of rows into the
+    other; the pixels whose window the row's ends cut short are done directly."""
     W = row.shape[0]
     p1 = _span_of(r1)
     p2 = _span_of(r2)
-    a_hi, a_lo, b_hi, b_lo = spans[0], spans[1], spans[2], spans[3]
+    a_hi, a_lo, b_hi, b_lo = spans
     if p1 == 1:
         _window_from(row, row, r1, p1, hi1, lo1)
     if p2 == 1:
