@@ -12,7 +12,7 @@ import numpy as np
 from app.decode.colour import camera_gamma_of
 from app.decode.depth_range import check_depth_range, copy_columns
 from app.decode.fast import average_frames
-from app.decode.mosaic import to_rgb
+from app.decode.mosaic import NO_LEAKS, mosaic_leaks, to_rgb
 from app.decode.motion import MotionParams, MotionRepair, check_motion_mode
 from app.decode.stripemap import StripeMap
 from app.decode.twoshot import SEGMENTATIONS
@@ -95,6 +95,8 @@ class FrameSetDecoder:
                 warnings.warn(self.depth_range_problem, DepthRangeWarning, stacklevel=2)
             mixing = calibration.color_mixing
             gamma = camera_gamma_of(calibration)
+        # a raw mosaic's lacking channel is filled consistently with the unmixing the decoder applies
+        self.leaks = mosaic_leaks(mixing) if self.mosaic is not None else NO_LEAKS
         self.decoder = self.kind.make_decoder(pattern_meta, proj_w, mixing, column_range, segmentation, gamma)
         self.shots = self.decoder.shots
 
@@ -163,7 +165,7 @@ class FrameSetDecoder:
             for raw, rgb in self._rgb_cache:
                 if raw is frame:
                     return rgb
-        rgb = to_rgb(frame, self.mosaic)
+        rgb = to_rgb(frame, self.mosaic, self.leaks)
         with self._rgb_lock:
             self._rgb_cache.append((frame, rgb))
         return rgb
