@@ -58,7 +58,9 @@ class Fuser:
 
     def track(self, scan: Scan) -> TrackResult:
         t0 = time.thread_time()
-        pts, nrm, rgb = self.maker.points_and_normals(scan.depth, self.tracker.settings.stride, scan.colour)
+        st = self.tracker.settings
+        # (the map's colours serve the coloured ICP only: without it the colour is not smoothed and sampled)
+        pts, nrm, rgb = self.maker.points_and_normals(scan.depth, st.stride, scan.colour if st.colour else None)
         res = self.tracker.track(pts, nrm, rgb, scan.frame_id)
         self.stats.track_s.append(time.thread_time() - t0)
         self.stats.scans += 1

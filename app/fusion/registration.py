@@ -31,8 +31,9 @@ class TrackSettings:
     map_voxel_mm: float = 1.0
     coarse_mm: float = 4.0  # correspondence distances of the two ICP stages
     fine_mm: float = 2.0
-    coarse_iterations: int = 12
+    coarse_iterations: int = 3  # from the constant-motion prediction the fine stage does the rest (docs)
     fine_iterations: int = 20
+    fine_tolerance: float = 1e-7  # relative change of fitness and RMSE that ends the fine stage
     min_fitness: float = 0.5  # share of the scan's points with a map point within fine_mm
     max_rmse_mm: float = 0.6
     max_step_deg: float = 8.0  # from the prediction
@@ -128,7 +129,8 @@ class Tracker:
         o3d = self.o3d
         pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts))
         pc.normals = o3d.utility.Vector3dVector(nrm)
-        pc.colors = o3d.utility.Vector3dVector(rgb)
+        if self.settings.colour:  # (only the coloured ICP reads them)
+            pc.colors = o3d.utility.Vector3dVector(rgb)
         return pc
 
     def _map_cloud(self, pts: np.ndarray, init: np.ndarray) -> object:
@@ -170,7 +172,7 @@ class Tracker:
                 coarse_src, tgt, st.coarse_mm, init, est, reg.ICPConvergenceCriteria(max_iteration=st.coarse_iterations)
             )
             fine = reg.ICPConvergenceCriteria(
-                relative_fitness=1e-7, relative_rmse=1e-7, max_iteration=st.fine_iterations
+                relative_fitness=st.fine_tolerance, relative_rmse=st.fine_tolerance, max_iteration=st.fine_iterations
             )
             if st.colour:
                 est = reg.TransformationEstimationForColoredICP(1.0 - st.colour_weight, reg.TukeyLoss(k=st.fine_mm))
