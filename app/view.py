@@ -14,8 +14,17 @@ the orbit; c switches the point colours between depth and camera.
 
 Keys: space = snapshot (depth TIFF + PNG16 + PLY + PNGs + scan.yaml into snapshot-NNN/, coloured by a texture frame
 taken for it), t = take a white-light texture frame now, r = start/stop recording a
-dump (rec-YYYYmmdd-HHMMSS/), m = switch scheme (two-shot -> one-shot -> graycode), q / Esc = quit;
-closing the window quits too. A device fault ends the session with its message on the terminal.
+dump (rec-YYYYmmdd-HHMMSS/), m = switch scheme (two-shot -> one-shot -> graycode), f = start/stop fusion (a new
+model each start), s = save the model (model-NNN/: model.ply, model.obj, model.trajectory.csv, as `slscan fuse`
+writes them), q / Esc = quit; closing the window quits too. A device fault ends the session with its message on the
+terminal.
+
+Fusion (app/fusion/live.py, needs slscan[fusion]): the decode workers offer every result to the fusion thread's
+one-slot mailbox and never wait for it, so capture and decoding go on at their pace whatever fusion costs. While
+fusion runs the 3D panel shows the model (the registration's map of model points, drawn as the scan's points are,
+coloured by depth in the model's frame, which is the camera's at the first fused scan) and the status line its state:
+tracking / LOST (n scans in a row failed registration), scans fused, dropped, late (replaced in the mailbox), skipped
+(tracked, not integrated). A save copies the model between two scans and writes it on a thread of its own.
 
 Threads: pyglet wants all windows of a process on one thread. The view's loop runs on the main
 thread and owns the projector window too when the rig has one (`PygletProjector`): the devices
@@ -184,6 +193,13 @@ class PointPanel:
     def pose(self) -> PointView:
         return self.view if self.manual else self.home.orbit(time.monotonic() - self.t0)
 
+    def render_model(self, points: np.ndarray) -> np.ndarray:
+        """The fused model's points (model frame = the camera's at its first scan), at most POINT_BUDGET of them,
+        coloured by depth in that frame, from the panel's pose."""
+        step = max(1, -(-len(points) // POINT_BUDGET))
+        xyz = np.asarray(points[::step], np.float32)
+        return render_points(xyz, depth_colours(xyz, self.depth_range_mm), self.pose())
+
     def render(self, result: LiveResult) -> np.ndarray:
         xyz, _ = decimate(result.depth, self.rays, None, self.step)
         if self.camera_colours:
@@ -227,6 +243,9 @@ class LiveView:
         self.redraw_ms: list[float] = []  # time of each redraw's image work (tests and the bench read it)
         self.points_ms: list[float] = []
         self.main_cpu_s = 0.0  # CPU the view's loop used (redraws, and projector calls it served)
+        self.fusion: Any = None  # LiveFusion while fusing, and after a stop until the next start (for s)
+        self.models = 0  # model-NNN folders written
+        self._saver: Any = None  # the thread writing a model
 
     def _point_panel(self) -> PointPanel:
         tri = self.processor.triangulator
@@ -246,7 +265,7 @@ class LiveView:
             workers=self.args.workers,
             max_frames=self.args.frames,
             recorder=self.recorder,
-            on_result=result_sink(self.args, self.processor),  # --publish (app/publisher.py)
+            on_result=self._sink(result_sink(self.args, self.processor)),  # --publish (app/publisher.py)
         )
         pipe.start()
         return pipe
@@ -265,7 +284,66 @@ class LiveView:
             self.projector.projector.close()  # already closed by the loop, unless it failed first
             self.projector = None
 
+    def _sink(self, publish: Any) -> Any:
+        """The workers' on_result: --publish, then the fusion thread's mailbox while fusion runs (never waits)."""
+
+        def sink(res: Any) -> None:
+            if publish is not None:
+                publish(res)
+            fusion = self.fusion
+            if fusion is not None and fusion.running:
+                fusion.offer(res)
+
+        return sink
+
     # -- keys ------------------------------------------------------------------------------
+    def toggle_fusion(self) -> None:
+        """f: start fusing into a new model, or stop (the model is kept for s)."""
+        if self.fusion is not None and self.fusion.running:
+            self.fusion.stop()
+            self.message = self.fusion.summary()
+            return
+        if self._saver is not None and self._saver.is_alive():
+            self.message = "fusion: a model is still being written"
+            return
+        from app.fusion.live import LiveFusion
+
+        voxel = float(getattr(self.args, "voxel_mm", 0.5))
+        try:
+            volume = fusion_volume(self.session, getattr(self.args, "volume_mm", None))
+            rng = self.session.depth_range_mm or (100.0, 5000.0)
+            self.fusion = LiveFusion(self.session.calibration, rng, volume, voxel)
+        except Exception as exc:  # Open3D missing, a volume too big for memory: one line, the session goes on
+            self.message = f"fusion: {exc}"
+            return
+        self.message = "fusion started"
+
+    def save_model(self) -> None:
+        """s: the model's mesh, as `slscan fuse` writes it, into model-NNN/ (written on a thread of its own)."""
+        fusion = self.fusion
+        if fusion is None or fusion.fuser.stats.integrated == 0:
+            self.message = "save: no model yet (f starts fusion)"
+            return
+        if self._saver is not None and self._saver.is_alive():
+            self.message = "save: a model is still being written"
+            return
+        while Path(f"model-{self.models:03d}").exists():
+            self.models += 1
+        out = Path(f"model-{self.models:03d}") / "model.ply"
+        self.message = f"saving the model ({fusion.fuser.stats.integrated} scans) to {out.parent}"
+
+        def write() -> None:
+            try:
+                ply, obj, csv, n = fusion.save(out)
+                self.message = f"model ({n} scans) written to {ply}, {obj}, {csv}"
+            except Exception as exc:  # no surface yet, a full disk: said on the status line
+                self.message = f"save: {exc}"
+
+        import threading
+
+        self._saver = threading.Thread(target=write, name="model-save", daemon=True)
+        self._saver.start()
+
     def snapshot(self) -> None:
         """Ask for a texture frame, then save the first result it colours (poll_snapshot), or the newest one after
         SNAPSHOT_TEXTURE_WAIT_S without it."""
@@ -339,6 +417,10 @@ class LiveView:
 
     def close(self) -> None:
         self._stop_pipeline()
+        if self._saver is not None:
+            self._saver.join()
+        if self.fusion is not None and self.fusion.running:
+            self.fusion.stop()
         if self.recorder is not None:
             rec = self.pipe.set_recorder(None) or self.recorder
             rec.close()
@@ -356,6 +438,10 @@ class LiveView:
             self.request_texture()
         elif symbol == key.M:
             self.switch_scheme()
+        elif symbol == key.F:
+            self.toggle_fusion()
+        elif symbol == key.S:
+            self.save_model()
         elif symbol == key.C:
             self.points.camera_colours = not self.points.camera_colours
         elif symbol == key.HOME:
@@ -375,7 +461,7 @@ class LiveView:
 
         screen = open_display().get_default_screen()
         pw, ph = panel_size(self.cam_size, (screen.width, screen.height))
-        status_h = 44  # two lines: the status line wraps on a narrow window
+        status_h = 62  # three lines: the status line (which wraps on a narrow window) and fusion's
         self.win = win = pyglet.window.Window(2 * pw, 2 * ph + status_h, caption="slscan live", vsync=False)
         self.panel_rects = [(0, 0, pw, ph), (pw, 0, pw, ph), (0, ph, pw, ph), (pw, ph, pw, ph)]  # x, y from the top
         # One texture per panel, made once and updated in place (glTexSubImage2D): ImageData.blit
@@ -396,6 +482,7 @@ class LiveView:
             pyglet.text.Label(t, x=x + 6, y=2 * ph + status_h - y - 18, font_size=10, color=(255, 255, 0, 255))
             for t, (x, y, _, _) in zip(("camera", "stripes", "depth", "3D points"), self.panel_rects, strict=True)
         ]
+        self.panel_titles = titles
 
         def upload(i: int, rgb: np.ndarray) -> None:
             rgb = np.ascontiguousarray(to_display(rgb))
@@ -447,7 +534,12 @@ class LiveView:
             elif self.pipe.latest_frame is not None and self.pipe.latest is None:
                 frame = self.pipe.latest_frame
                 upload(0, to_display(frame.image, frame.mosaic))
-            if last is not None:
+            fusing = self.fusion is not None and self.fusion.running
+            if fusing:
+                t1 = time.perf_counter()
+                upload(3, self.points.render_model(self.fusion.fuser.tracker.map.points))
+                self.points_ms.append((time.perf_counter() - t1) * 1e3)
+            elif last is not None:
                 t1 = time.perf_counter()
                 upload(3, self.points.render(last))
                 self.points_ms.append((time.perf_counter() - t1) * 1e3)
@@ -460,8 +552,12 @@ class LiveView:
                     f"[{self.session.scheme}] "
                     + status_line(self.pipe.figures(), rec)
                     + (f"  | {self.message}" if self.message else "")
+                    + (f"\n{self.fusion.state()}" if self.fusion is not None else "")
                 )
                 self.status_text = label.text
+                title = f"model ({len(self.fusion.fuser.tracker.map)} points)" if fusing else "3D points"
+                if titles[3].text != title:
+                    titles[3].text = title
             self.redraw_ms.append((time.perf_counter() - t0) * 1e3)
             del self.redraw_ms[:-1000], self.points_ms[:-1000]
 
@@ -516,6 +612,17 @@ class LiveView:
         if self.pipe.stop_reason:
             print(f"slscan live: stopped cleanly: {self.pipe.stop_reason}")
         return 0
+
+
+def fusion_volume(session: Session, volume_arg: str | None) -> tuple[float, ...] | None:
+    """The working volume fusion keeps of each scan: --volume-mm, else the virtual rig's scene's (if it has one)."""
+    from app.argtypes import volume_mm
+
+    if volume_arg is not None:
+        return volume_mm(volume_arg)
+    rig = getattr(session.sim, "rig", None)
+    scene = getattr(rig, "scene", None)
+    return getattr(scene, "working_volume_mm", None)
 
 
 def run_view(session: Session, args: argparse.Namespace) -> int:

@@ -31,7 +31,8 @@ examples:
   slscan live --publish tcp://127.0.0.1:5556    # and stream every scan's depth (slscan.Subscriber reads it)
 
 keys in the window: space = snapshot (depth TIFF and PNG16, PLY, PNGs, scan.yaml; coloured by a texture frame
-taken for it), t = take a white-light texture frame, r = start/stop recording, m = switch scheme, q / Esc = quit.
+taken for it), t = take a white-light texture frame, r = start/stop recording, m = switch scheme, f = start/stop
+fusion, s = save the fused model (model-NNN/: PLY, OBJ, trajectory), q / Esc = quit.
 Without a display, `slscan live` says so and runs headless.
 """
 
@@ -62,11 +63,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     add_publish_arguments(p)
     p.add_argument(
-        "--fuse", action="store_true", help="headless: register and integrate every scan into a mesh (slscan[fusion])"
+        "--fuse",
+        action="store_true",
+        help="headless: register and integrate every scan into a mesh (slscan[fusion]; in the window: the f key)",
     )
-    p.add_argument("--voxel-mm", type=float, default=0.5, metavar="V", help="--fuse: TSDF voxel size (default 0.5)")
     p.add_argument(
-        "--volume-mm", metavar="X0,X1,Y0,Y1,Z0,Z1", help="--fuse: the working volume, camera mm (default: all)"
+        "--voxel-mm", type=float, default=0.5, metavar="V", help="fusion (--fuse, f): TSDF voxel size (default 0.5)"
+    )
+    p.add_argument(
+        "--volume-mm",
+        metavar="X0,X1,Y0,Y1,Z0,Z1",
+        help="fusion (--fuse, f): the working volume, camera mm (default: the virtual rig scene's, else all)",
     )
     p.set_defaults(func=run)
 
@@ -74,6 +81,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.frames is not None and args.frames < 1:
         raise InputError(f"--frames {args.frames}: must be at least 1")
+    if not args.voxel_mm > 0:  # (the window's f key and --fuse both use it)
+        raise InputError(f"--voxel-mm {args.voxel_mm:g}: must be > 0")
     if not args.headless and not os.environ.get("DISPLAY"):
         # The session itself needs no screen: run it headless rather than refuse (say so on stderr).
         print(
@@ -185,13 +194,11 @@ def run_headless(session: Session, args: argparse.Namespace, label: str = "live"
 def _open_fusion(session: Session, args: argparse.Namespace) -> object | None:
     if not getattr(args, "fuse", False):
         return None
-    from app.argtypes import volume_mm
     from app.fusion.live import LiveFusion
+    from app.view import fusion_volume
 
-    if not args.voxel_mm > 0:
-        raise InputError(f"--voxel-mm {args.voxel_mm:g}: must be > 0")
     rng = session.depth_range_mm or (100.0, 5000.0)
-    return LiveFusion(session.calibration, rng, volume_mm(args.volume_mm), args.voxel_mm)
+    return LiveFusion(session.calibration, rng, fusion_volume(session, args.volume_mm), args.voxel_mm)
 
 
 def _both(a: object, b: object) -> object:

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from app.fusion.registration import Tracker, TrackResult, TrackSettings
+from app.fusion.registration import Tracker, TrackResult, TrackSettings, for_footprint
 from app.fusion.scan import Scan, ScanMaker
 from app.fusion.volume import Volume, box_surface_mm2, check_memory
 from core.calibration import Calibration
@@ -45,6 +45,9 @@ class Fuser:
             surface = 2.0 * (w * far / K[0, 0]) * (h * far / K[1, 1])
         check_memory(voxel_mm, surface)
         self.maker = ScanMaker(calibration, volume_mm)
+        if settings is None:  # (given settings are taken as they are)
+            footprint = 0.5 * (depth_range_mm[0] + depth_range_mm[1]) / calibration.camera_matrix[0, 0]
+            settings = for_footprint(TrackSettings(), footprint)
         self.tracker = Tracker(settings)
         self.volume = Volume(voxel_mm, self.maker.K, (w, h), far, surface, min_weight)
         self.stats = FuseStats()
@@ -55,8 +58,10 @@ class Fuser:
 
     def track(self, scan: Scan) -> TrackResult:
         t0 = time.thread_time()
-        pts, nrm, rgb = self.maker.points_and_normals(scan.depth, self.tracker.settings.stride, scan.colour)
-        res = self.tracker.track(pts, nrm, rgb)
+        st = self.tracker.settings
+        # (the map's colours serve the coloured ICP only: without it the colour is not smoothed and sampled)
+        pts, nrm, rgb = self.maker.points_and_normals(scan.depth, st.stride, scan.colour if st.colour else None)
+        res = self.tracker.track(pts, nrm, rgb, scan.frame_id)
         self.stats.track_s.append(time.thread_time() - t0)
         self.stats.scans += 1
         status = "ok" if res.ok else "dropped"

@@ -1,13 +1,20 @@
 """Fusion in a live session: every decoded scan is offered to one fusion thread, which never holds capture up.
 
 The decode workers hand their results to `offer` (a one-slot mailbox: a scan still waiting when a newer one comes
-is replaced and counted `late`); the fusion thread tracks every scan it takes, and integrates an accepted one only
-when no newer scan is already waiting (else `skipped`): tracking keeps up first, integration takes what is left.
+is replaced and counted `late`); the fusion thread tracks every scan it takes, and integrates an accepted one when
+no newer scan is already waiting or when INTEGRATE_EVERY_S has passed since the last integration (else `skipped`):
+tracking keeps up first, and integration still gets its share when tracking alone takes all the time there is.
+
+`save` (the operator window's key, on a thread of its own) takes the model's mesh and poses between two scans (one
+lock, held by the fusion thread for each scan and by `save` while it copies the model out), so a mesh is never read
+from a volume half-way through an integration; scans that come meanwhile wait in the mailbox and count late.
 """
 
 from __future__ import annotations
 
 import threading
+import time
+from pathlib import Path
 from typing import Any
 
 from app.decode.mosaic import to_rgb
@@ -17,6 +24,7 @@ from app.recorder import lower_thread_priority
 from core.calibration import Calibration
 
 FUSION_NICENESS = 10  # the capture loop and the decode workers come first
+INTEGRATE_EVERY_S = 0.08  # at least ~10 integrations a second (each ~12 ms of CPU) even when scans queue up
 
 
 class LiveFusion:
@@ -35,6 +43,7 @@ class LiveFusion:
         self.late = 0  # replaced in the mailbox before the fusion thread took them
         self.skipped = 0  # tracked and accepted, not integrated (a newer scan was waiting)
         self.error: str | None = None
+        self._lock = threading.Lock()  # one scan's track + integrate, or a save's copy of the model
         self._thread = threading.Thread(target=self._run, name="fusion", daemon=True)
         self._thread.start()
 
@@ -49,6 +58,7 @@ class LiveFusion:
 
     def _run(self) -> None:
         lower_thread_priority(FUSION_NICENESS)
+        last_integration = float("-inf")
         while True:
             with self._cond:
                 while self._slot is None and not self._stop:
@@ -59,14 +69,16 @@ class LiveFusion:
             try:
                 frames = [to_rgb(f.image, f.mosaic) for f in res.frameset.frames]
                 scan = self.fuser.scan(res.depth, scan_colour(frames), res.frameset.newest.frame_id)
-                tracked = self.fuser.track(scan)
-                if tracked.ok:
-                    with self._cond:
-                        newer = self._slot is not None
-                    if newer:
-                        self.skipped += 1
-                    else:
-                        self.fuser.integrate(scan, tracked.pose)
+                with self._lock:
+                    tracked = self.fuser.track(scan)
+                    if tracked.ok:
+                        with self._cond:
+                            newer = self._slot is not None
+                        if newer and time.monotonic() - last_integration < INTEGRATE_EVERY_S:
+                            self.skipped += 1
+                        else:
+                            self.fuser.integrate(scan, tracked.pose)
+                            last_integration = time.monotonic()
             except Exception as exc:  # reported with the session's figures; capture goes on regardless
                 self.error = f"{type(exc).__name__}: {exc}"
                 return
@@ -77,6 +89,44 @@ class LiveFusion:
             self._stop = True
             self._cond.notify()
         self._thread.join()
+
+    @property
+    def running(self) -> bool:
+        return self._thread.is_alive()
+
+    def state(self) -> str:
+        """One line for the operator: tracking / lost / stopped, and the counts."""
+        s = self.fuser.stats
+        if self.error is not None:
+            state = "FAILED"
+        elif not self.running:
+            state = "stopped"
+        elif s.scans == 0:
+            state = "waiting"
+        elif s.dropped_in_a_row:
+            state = f"LOST ({s.dropped_in_a_row} in a row)"
+        else:
+            state = "tracking"
+        return (
+            f"fusion {state}: {s.integrated} fused, {s.dropped} dropped, {self.late} late, {self.skipped} skipped; "
+            f"model {len(self.fuser.tracker.map)} points"
+        )
+
+    def save(self, out: str | Path) -> tuple[Path, Path, Path, int]:
+        """The mesh (PLY + OBJ, as `slscan fuse` writes them) and the trajectory beside them; (ply, obj, csv, scans).
+
+        Safe while the fusion thread runs (it waits for the copy); InputError when there is no surface yet."""
+        from app.fusion.mesh_io import mesh_paths, write_mesh
+        from core.trajectory import write_trajectory
+
+        with self._lock:
+            mesh = self.fuser.mesh()
+            poses = list(self.fuser.poses)
+            scans = self.fuser.stats.integrated
+        ply, obj = write_mesh(mesh, out)
+        trajectory = mesh_paths(out)[0].with_suffix(".trajectory.csv")
+        write_trajectory(trajectory, poses)
+        return ply, obj, trajectory, scans
 
     def summary(self) -> str:
         s = self.fuser.stats

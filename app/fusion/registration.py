@@ -13,13 +13,16 @@ pose.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from app.fusion.open3d_import import open3d
 
 MAX_COAST = 3  # scans the prediction goes on at the last step after the last accepted one
+# The gates below were tuned on the virtual rig's 640x480 camera, a pixel covering 0.355 mm at mid range (780 mm);
+# a coarser camera's depth is noisier in proportion (a scan's inlier RMSE at 320x240: 0.4-0.9 mm, not 0.33-0.42)
+REFERENCE_FOOTPRINT_MM = 0.355
 
 
 @dataclass
@@ -28,8 +31,9 @@ class TrackSettings:
     map_voxel_mm: float = 1.0
     coarse_mm: float = 4.0  # correspondence distances of the two ICP stages
     fine_mm: float = 2.0
-    coarse_iterations: int = 12
+    coarse_iterations: int = 3  # from the constant-motion prediction the fine stage does the rest (docs)
     fine_iterations: int = 20
+    fine_tolerance: float = 1e-7  # relative change of fitness and RMSE that ends the fine stage
     min_fitness: float = 0.5  # share of the scan's points with a map point within fine_mm
     max_rmse_mm: float = 0.6
     max_step_deg: float = 8.0  # from the prediction
@@ -37,6 +41,12 @@ class TrackSettings:
     max_incidence_deg: float = 70.0  # steeper points are not added to the map (their depth is the least sure)
     colour: bool = False  # the fine stage is coloured ICP (Park et al. 2017): texture holds what geometry lets slide
     colour_weight: float = 0.9  # 1 - lambda_geometric
+
+
+def for_footprint(settings: TrackSettings, footprint_mm: float) -> TrackSettings:
+    """The RMSE gate widened for a camera whose pixel covers more than the reference's (never narrowed)."""
+    scale = max(1.0, footprint_mm / REFERENCE_FOOTPRINT_MM)
+    return replace(settings, max_rmse_mm=settings.max_rmse_mm * scale)
 
 
 @dataclass
@@ -96,16 +106,22 @@ class Tracker:
         self.settings = settings or TrackSettings()
         self.map = PointMap(self.settings.map_voxel_mm)
         self.pose: np.ndarray | None = None  # the last accepted pose
-        self.step = np.eye(4)  # the last accepted step, per scan
+        self.step = np.eye(4)  # the last accepted step, per frame
         self.since_ok = 1  # scans since the last accepted one
+        self.frame: int | None = None  # the frame id of the last accepted scan
+        self.gap = 1  # frames between the last two accepted scans
+        self.frames_since = 1  # frames from the last accepted scan to the one being tracked
+        self._frame_id: int | None = None  # the frame id of the scan being tracked
 
     def prediction(self) -> np.ndarray:
-        """The last accepted pose moved on by the last step per scan since, for at most MAX_COAST scans: beyond
-        them constant motion is a guess that runs away from the object rather than toward it."""
+        """The last accepted pose moved on by the last step per frame for each frame since, for at most MAX_COAST
+        scans' worth of frames (at the last gap between accepted scans): beyond them constant motion is a guess that
+        runs away from the object rather than toward it. Per frame, not per scan: a live fusion thread takes the
+        newest scan, so the frames between the scans it tracks vary (offline every frame is a scan: the same)."""
         if self.pose is None:
             return np.eye(4)
         P = self.pose
-        for _ in range(min(self.since_ok, MAX_COAST)):
+        for _ in range(min(self.frames_since, MAX_COAST * self.gap)):
             P = P @ self.step
         return P
 
@@ -113,7 +129,8 @@ class Tracker:
         o3d = self.o3d
         pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts))
         pc.normals = o3d.utility.Vector3dVector(nrm)
-        pc.colors = o3d.utility.Vector3dVector(rgb)
+        if self.settings.colour:  # (only the coloured ICP reads them)
+            pc.colors = o3d.utility.Vector3dVector(rgb)
         return pc
 
     def _map_cloud(self, pts: np.ndarray, init: np.ndarray) -> object:
@@ -126,10 +143,15 @@ class Tracker:
         near = np.all((self.map.points >= lo) & (self.map.points <= hi), axis=1)
         return self._cloud(self.map.points[near], self.map.normals[near], self.map.colours[near])
 
-    def track(self, pts: np.ndarray, nrm: np.ndarray, rgb: np.ndarray) -> TrackResult:
+    def track(self, pts: np.ndarray, nrm: np.ndarray, rgb: np.ndarray, frame_id: int | None = None) -> TrackResult:
         """Register a scan's camera-frame points (with normals toward the camera, colours 0..1); on success, extend
-        the map."""
+        the map. frame_id: the scan's frame (None: one frame after the scan before)."""
         st = self.settings
+        if frame_id is not None and self.frame is not None and frame_id > self.frame:
+            self.frames_since = frame_id - self.frame
+        else:  # no frame ids: every scan one frame on
+            self.frames_since = self.since_ok
+        self._frame_id = frame_id
         if self.pose is None:  # the first scan defines the model's frame
             self._accept(np.eye(4), pts, nrm, rgb)
             return TrackResult(True, np.eye(4), 1.0, 0.0)
@@ -150,7 +172,7 @@ class Tracker:
                 coarse_src, tgt, st.coarse_mm, init, est, reg.ICPConvergenceCriteria(max_iteration=st.coarse_iterations)
             )
             fine = reg.ICPConvergenceCriteria(
-                relative_fitness=1e-7, relative_rmse=1e-7, max_iteration=st.fine_iterations
+                relative_fitness=st.fine_tolerance, relative_rmse=st.fine_tolerance, max_iteration=st.fine_iterations
             )
             if st.colour:
                 est = reg.TransformationEstimationForColoredICP(1.0 - st.colour_weight, reg.TukeyLoss(k=st.fine_mm))
@@ -181,9 +203,11 @@ class Tracker:
 
     def _accept(self, M: np.ndarray, pts: np.ndarray, nrm: np.ndarray, rgb: np.ndarray) -> None:
         if self.pose is not None:
-            # the step per scan, averaged over the scans since the last accepted one (rotation by its angle)
+            # the step per frame, averaged over the frames since the last accepted scan (rotation by its angle)
             step = np.linalg.inv(self.pose) @ M
-            self.step = _root(step, self.since_ok)
+            self.step = _root(step, self.frames_since)
+            self.gap = max(1, round(self.frames_since / self.since_ok))  # frames per scan tried since
+        self.frame = self._frame_id
         self.pose = M
         self.since_ok = 1
         ray = pts / np.linalg.norm(pts, axis=1, keepdims=True)
