@@ -5,9 +5,10 @@ object moves between the two frames, a stripe moves by more than its own width a
 two-shot frame alone is already a one-shot code with the same windows: its channels' levels are the code, and the
 other frame only their inverse. So where the newest frame differs from the previous frame of the same pattern (the
 frame before the pair), the older frame of the pair is replaced by the newest frame's inverse about its local
-envelope (`app/decode/fast/motion.py`), and the unchanged two-shot decoder decodes the newest frame's geometry
-there. Where nothing changed the pair is decoded as it is, bit for bit. Without a previous frame (the first pair
-of a stream, a lone pair) there is no evidence of motion and the pair is decoded as it is.
+envelope, or, where both frames of the pair keep their local mean level, about the mean of both
+(`app/decode/fast/motion.py`), and the unchanged two-shot decoder decodes the newest frame's geometry there. Where
+nothing changed the pair is decoded as it is, bit for bit. Without a previous frame (the first pair of a stream, a
+lone pair) there is no evidence of motion and the pair is decoded as it is.
 
 `repair_reference` states the computation in plain numpy; `fast.repair_older` is the compiled form the decoders use.
 """

@@ -1,13 +1,14 @@
 """Motion: the older frame of a two-shot pair, repaired where the scene moved since the frame before it.
 
 A two-shot pair decodes from the sign of frame2 - frame1, which holds only while the scene is still. Where the
-newest frame differs from the previous frame of the same pattern (two frames earlier) by more than noise and a
-share of the local stripe contrast, the scene moved: there the older frame is replaced by the newest frame's own
-inverse about its local envelope, lin(older') = hi + lo - lin(newest), with hi and lo the largest and smallest
-linear value of the newest frame in a window along the row (MotionParams). The pair's difference is then twice
+newest frame differs from the previous frame of the same pattern (two frames earlier) by more than noise and a share
+of the local stripe contrast, the scene moved: there the older frame is replaced by the newest frame's own inverse
+about its local envelope, lin(older') = hi + lo - lin(newest), with hi and lo the largest and smallest linear value
+of the newest frame in a window along the row (MotionParams); or, where the newest and the older frame's local means
+along the row (over a window and each of its halves) agree, hi + lo = their sum. The pair's difference is then twice
 the newest frame's distance from its local midpoint: the newest frame decodes alone, as the one-shot code it is,
-while still pixels keep the pair's robustness to surface colour and ambient light. Elsewhere the older frame is
-left as it was, bit for bit, so a still scene decodes exactly as without this stage.
+while still pixels keep the pair's robustness to surface colour and ambient light. Elsewhere the older frame is left
+as it was, bit for bit, so a still scene decodes exactly as without this stage.
 
 `app/decode/motion.py` holds the parameters and a plain numpy statement of the same computation (the tests
 compare both).
