@@ -5,9 +5,10 @@ object moves between the two frames, a stripe moves by more than its own width a
 two-shot frame alone is already a one-shot code with the same windows: its channels' levels are the code, and the
 other frame only their inverse. So where the newest frame differs from the previous frame of the same pattern (the
 frame before the pair), the older frame of the pair is replaced by the newest frame's inverse about its local
-envelope (`app/decode/fast/motion.py`), and the unchanged two-shot decoder decodes the newest frame's geometry
-there. Where nothing changed the pair is decoded as it is, bit for bit. Without a previous frame (the first pair
-of a stream, a lone pair) there is no evidence of motion and the pair is decoded as it is.
+envelope, or, where both frames of the pair keep their local mean level, about the mean of both
+(`app/decode/fast/motion.py`), and the unchanged two-shot decoder decodes the newest frame's geometry there. Where
+nothing changed the pair is decoded as it is, bit for bit. Without a previous frame (the first pair of a stream, a
+lone pair) there is no evidence of motion and the pair is decoded as it is.
 
 `repair_reference` states the computation in plain numpy; `fast.repair_older` is the compiled form the decoders use.
 """
@@ -20,7 +21,7 @@ import numpy as np
 
 from app.decode.colour import CHANNEL_INDEX
 from app.decode.fast.differences import pair_tables
-from app.decode.fast.motion import repair_older
+from app.decode.fast.motion import MEAN_SCALE, repair_older
 from app.errors import InputError
 
 MOTION_MODES = ("auto", "off")
@@ -86,6 +87,24 @@ def inverse_table(lin: np.ndarray, bins: int = INVERSE_BINS) -> tuple[np.ndarray
         take_below = (i > 0) & (centres - lin[c, below] <= lin[c, i] - centres)
         inverse[c] = np.where(take_below, below, i)
     return inverse, np.array([first, scale, bins], np.float32)
+
+
+def quantised(values: np.ndarray) -> np.ndarray:
+    """Linear values (float32) in int32 steps of 1 / MEAN_SCALE, rounded, negative ones to 0 (fast.motion.quantise):
+    the local sums' terms."""
+    return np.maximum(values * np.float32(MEAN_SCALE) + np.float32(0.5), np.float32(0.0)).astype(np.int32)
+
+
+def window_constants(W: int, radius: int, floor: float) -> np.ndarray:
+    """fast.motion._window_constants in numpy: (4, W) float32, per pixel of a row the floor in quantised sums'
+    units over the window, its left half and its right half (clipped at the row's ends), and the window's
+    reciprocal count in linear units per sum."""
+    x = np.arange(W)
+    first, last = np.maximum(x - radius, 0), np.minimum(x + radius + 1, W)
+    scale = np.float32(MEAN_SCALE)
+    counts = [last - first, x + 1 - first, last - x]
+    out = [np.float32(floor) * (scale * c.astype(np.float32)) for c in counts]
+    return np.stack([*out, np.float32(1.0) / (scale * counts[0].astype(np.float32))]).astype(np.float32)
 
 
 class MotionRepair:
@@ -158,23 +177,24 @@ def repair_reference(
     for o in range(1, params.spread + 1):
         moving[:, : W - o] |= changed[:, o:]
         moving[:, o:] |= changed[:, : W - o]
-    lo_ = lin[ch, older]
+    qn, qo = quantised(ln), quantised(lin[ch, older])
 
-    def window_means(v: np.ndarray, lo_off: int, hi_off: int) -> np.ndarray:  # windows clipped at the row's ends
-        sums = np.zeros((v.shape[0], W + 1, 3))
-        sums[:, 1:] = np.cumsum(v.astype(np.float64), axis=1)
+    def window_sums(v: np.ndarray, lo_off: int, hi_off: int) -> np.ndarray:  # windows clipped at the row's ends
+        sums = np.zeros((v.shape[0], W + 1, 3), np.int64)
+        sums[:, 1:] = np.cumsum(v, axis=1)
         x = np.arange(W)
         first, last = np.maximum(x + lo_off, 0), np.minimum(x + hi_off + 1, W)
-        return ((sums[:, last] - sums[:, first]) / (last - first)[None, :, None]).astype(np.float32)
+        return sums[:, last].astype(np.float32) - sums[:, first].astype(np.float32)  # (exact: integers below 2^24)
 
     r = params.mean_radius
+    constants = window_constants(W, r, params.mean_floor)
     agree = np.ones(newest.shape[:2], bool)
-    for lo_off, hi_off in ((-r, r), (-r, 0), (0, r)):  # the window, then its halves
-        mn, mo = window_means(ln, lo_off, hi_off), window_means(lo_, lo_off, hi_off)
-        limit = np.float32(params.mean_share) * (mn + mo) + np.float32(params.mean_floor)
-        agree &= (np.abs(mn - mo) <= limit)[..., w].all(axis=2)
-    mn, mo = window_means(ln, -r, r), window_means(lo_, -r, r)
-    both = np.where(agree[..., None], mn + mo, hi + lo)  # the pair's sum of both levels
+    for k, lo_off, hi_off in ((0, -r, r), (1, -r, 0), (2, 0, r)):  # the window, then its halves
+        sn, so = window_sums(qn, lo_off, hi_off), window_sums(qo, lo_off, hi_off)
+        limit = np.float32(params.mean_share) * (sn + so) + constants[k][None, :, None]
+        agree &= (np.abs(sn - so) <= limit)[..., w].all(axis=2)
+    sn, so = window_sums(qn, -r, r), window_sums(qo, -r, r)
+    both = np.where(agree[..., None], (sn + so) * constants[3][None, :, None], hi + lo)  # the sum of both levels
     inverse, grid = inverse_table(lin)
     target = both - ln  # the newest frame's inverse about that sum, in linear units
     bins = np.clip(((target - grid[0]) * grid[1] + np.float32(0.5)).astype(np.int64), 0, int(grid[2]) - 1)

@@ -1,13 +1,14 @@
 """Motion: the older frame of a two-shot pair, repaired where the scene moved since the frame before it.
 
 A two-shot pair decodes from the sign of frame2 - frame1, which holds only while the scene is still. Where the
-newest frame differs from the previous frame of the same pattern (two frames earlier) by more than noise and a
-share of the local stripe contrast, the scene moved: there the older frame is replaced by the newest frame's own
-inverse about its local envelope, lin(older') = hi + lo - lin(newest), with hi and lo the largest and smallest
-linear value of the newest frame in a window along the row (MotionParams). The pair's difference is then twice
+newest frame differs from the previous frame of the same pattern (two frames earlier) by more than noise and a share
+of the local stripe contrast, the scene moved: there the older frame is replaced by the newest frame's own inverse
+about its local envelope, lin(older') = hi + lo - lin(newest), with hi and lo the largest and smallest linear value
+of the newest frame in a window along the row (MotionParams); or, where the newest and the older frame's local means
+along the row (over a window and each of its halves) agree, hi + lo = their sum. The pair's difference is then twice
 the newest frame's distance from its local midpoint: the newest frame decodes alone, as the one-shot code it is,
-while still pixels keep the pair's robustness to surface colour and ambient light. Elsewhere the older frame is
-left as it was, bit for bit, so a still scene decodes exactly as without this stage.
+while still pixels keep the pair's robustness to surface colour and ambient light. Elsewhere the older frame is left
+as it was, bit for bit, so a still scene decodes exactly as without this stage.
 
 `app/decode/motion.py` holds the parameters and a plain numpy statement of the same computation (the tests
 compare both).
@@ -21,6 +22,8 @@ from numba import njit
 import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
 from app.decode.fast.differences import PAIR_ENTRIES
 from app.decode.primitives import gather
+
+MEAN_SCALE = 16  # the local sums' quantisation: steps of 1 / MEAN_SCALE linear 8-bit units (int32 sums, exact)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -39,18 +42,22 @@ def repair_older(
     tables: (lin, dlin, pairs, inverse, grid): the camera's linearisation and its noise slope (3, levels) float32
     (app.decode.colour.linearisation); for 8-bit frames the pair table of app.decode.fast.pair_tables (one gather
     for a change and its noise slopes), else an empty one; linear value -> nearest raw level per channel
-    (app.decode.motion.inverse_table). watched: the camera channels (int64) whose change marks motion (the
-    pattern's). limits: float32 (share of the local contrast, multiple of the noise slopes, floor in linear 8-bit
-    units) a change must exceed, then the share of the wide window's contrast the narrow window must keep to be
-    used, then the share of their sum and the floor within which the two frames' local means must agree to be
-    used. radii: int64 (narrow, wide) half-widths of the envelope windows along the row, then that of the local
-    means; spread: how far along the row a moving pixel's mark reaches."""
+    (app.decode.motion.inverse_table). watched: the camera channels (int64) whose change marks
+    motion (the pattern's). limits: float32 (share of the local contrast, multiple of the noise slopes, floor in
+    linear 8-bit units) a change must exceed, then the share of the wide window's contrast the narrow window must
+    keep to be used, then the share of their sum and the floor within which the two frames' local means must
+    agree to be used. radii: int64 (narrow, wide) half-widths of the envelope windows along the row, then that of
+    the local means; spread: how far along the row a moving pixel's mark reaches."""
     newest, older, previous = frames
     H, W, C = newest.shape
     rows = np.empty((7 * C + 9, W), np.float32)  # the row loop's scratch rows
-    # table indices and gathered values: C rows of int32, a row of int64 (a pair table's entries); the running
-    # sums of the newest and the older frame's linear values along the row, float64
-    lookups = (np.empty((C, W), np.int32), np.empty(W, np.int64), np.empty((2, W + 1), np.float64))
+    # table indices and gathered values: C rows of int32, a row of int64 (a pair table's entries); the newest and
+    # the older frame's quantised values along the row and their running sums, int32 (exact: any start gives the
+    # same window sums); per pixel of a row, the local means' floors (window, left half, right half) in sums'
+    # units and the window's reciprocal count (the window clipped at the row's ends)
+    per_pixel = np.empty((4, W), np.float32)
+    _window_constants(W, radii[2], limits[5], per_pixel)
+    lookups = (np.empty((C, W), np.int32), np.empty(W, np.int64), np.empty((4, W + 1), np.int32), per_pixel)
     flat = (older.reshape(H, W * C), out.reshape(H, W * C))  # (the rows' copy as one vector loop)
     return _repair_rows((newest, previous, older), tables, watched, limits, radii, spread, rows, lookups, flat, out)
 
@@ -63,7 +70,7 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, 
     lin, dlin, pairs, inverse, grid = tables
     H, W, C = newest.shape
     rel, noise_k, floor, narrow_share = limits[0], limits[1], limits[2], limits[3]
-    mean_share, mean_floor = limits[4], limits[5]
+    mean_share = limits[4]
     ln = rows[0:C]  # the newest frame's linear values, channel-planar
     hi = rows[C : 2 * C]  # their extremes over the envelope window
     lo = rows[2 * C : 3 * C]
@@ -74,10 +81,11 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, 
     moving = rows[3 * C + 7]
     changes = rows[3 * C + 8 : 4 * C + 8]  # |newest - previous|, linear, per watched channel
     slopes = rows[4 * C + 8 : 5 * C + 8]  # the newest and the previous frame's noise slopes summed, per watched channel
-    means_new = rows[5 * C + 8 : 6 * C + 8]  # the newest frame's local means, per channel
-    means_old = rows[6 * C + 8 : 7 * C + 8]  # the older frame's
+    sums_new = rows[5 * C + 8 : 6 * C + 8]  # the newest frame's local sums (quantised, exact in float32), per channel
+    sums_old = rows[6 * C + 8 : 7 * C + 8]  # the older frame's
     agree = rows[7 * C + 8]  # 1 where the two frames' local means agree in every watched channel, else 0
-    index, entries, sums = lookups
+    index, entries, quantised_rows, per_pixel = lookups
+    qn, qo, sn, so = quantised_rows[0], quantised_rows[1], quantised_rows[2], quantised_rows[3]
     entry_halves = entries.view(np.float32)
     shared_pairs = pairs.shape[0] == PAIR_ENTRIES  # (one pair table for the three channels)
     older_flat, out_flat = flat
@@ -132,16 +140,16 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, 
         reach = max(radii[0], radii[1])
         e, f = max(a - reach, 0), min(b + reach, W)
         rm = radii[2]
-        g = min(b + rm, W)  # (the local means' sums run from the row's start: the same sums in every span)
-        f_all = max(f, g)
+        s0, g = max(a - rm, 0), min(b + rm, W)  # the local sums' reach
         agree_ab = agree[a:b]
         _fill(agree_ab, 1.0)
+        e2, f2 = min(e, s0), max(f, g)  # (the pixels of both reaches: one gather)
         for c in range(C):
             lnc, hic, loc = ln[c, e:f], hi[c, e:f], lo[c, e:f]
-            at = index[c, :f_all]
-            for x in range(f_all):
-                at[x] = newest[y, x, c]
-            gather(ln[c, :f_all], lin[c], at, f_all)
+            at = index[c, e2:f2]
+            for x in range(f2 - e2):
+                at[x] = newest[y, e2 + x, c]
+            gather(ln[c, e2:f2], lin[c], at, f2 - e2)
             # the narrow window where it holds both levels of the channel (its contrast a share of the wide
             # window's), else the wide one: a narrow window reaches across fewer albedo and depth edges
             spans_ef = (spans[0, e:f], spans[1, e:f], spans[2, e:f], spans[3, e:f])
@@ -151,26 +159,30 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, 
                 narrow = hic[x] - loc[x] >= narrow_share * (whi[x] - wlo[x])
                 hic[x] = hic[x] if narrow else whi[x]
                 loc[x] = loc[x] if narrow else wlo[x]
-            # the local means of the newest and the older frame over the window clipped at the row's ends
-            older_lin = changed[:g]  # (changed is free until the change test below)
-            for x in range(g):
-                at[x] = older[y, x, c]
-            gather(older_lin, lin[c], at, g)
-            _running_sums(ln[c], older_lin, g, sums[0], sums[1])
-            mn, mo = means_new[c, a:b], means_old[c, a:b]
-            _window_means(sums[0], a, b, -rm, rm, W, mn)
-            _window_means(sums[1], a, b, -rm, rm, W, mo)
+            # the local sums of the newest and the older frame over the window clipped at the row's ends
+            m = g - s0
+            at = index[c, :m]
+            for x in range(m):
+                at[x] = older[y, s0 + x, c]
+            older_lin = changed[:m]  # (changed is free until the change test below)
+            gather(older_lin, lin[c], at, m)
+            _quantise(ln[c, s0:g], qn)
+            _quantise(older_lin, qo)
+            _running_sums(qn, qo, m, sn, so)
+            mn, mo = sums_new[c, a:b], sums_old[c, a:b]
+            _window_sums(sn, s0, a, b, -rm, rm, W, mn)
+            _window_sums(so, s0, a, b, -rm, rm, W, mo)
             # Where the two frames' local means agree (the surface's level unchanged across the window) their sum
             # is the channel's local sum of both levels, balanced whatever the code: it replaces the envelope's
             # hi + lo there. The means over the window's two halves must agree too: a silhouette or an albedo edge
             # that moved inside the window changes one half's level while the whole's may stay within the share.
             if _is_watched(watched, c):
-                _agree_into(mn, mo, mean_share, mean_floor, agree_ab)
-                for lo_off, hi_off in ((-rm, 0), (0, rm)):
+                _agree_into(mn, mo, mean_share, per_pixel[0, a:b], agree_ab)
+                for k, lo_off, hi_off in ((1, -rm, 0), (2, 0, rm)):
                     half_new, half_old = changed[a:b], moving[a:b]  # (free until the change test below)
-                    _window_means(sums[0], a, b, lo_off, hi_off, W, half_new)
-                    _window_means(sums[1], a, b, lo_off, hi_off, W, half_old)
-                    _agree_into(half_new, half_old, mean_share, mean_floor, agree_ab)
+                    _window_sums(sn, s0, a, b, lo_off, hi_off, W, half_new)
+                    _window_sums(so, s0, a, b, lo_off, hi_off, W, half_old)
+                    _agree_into(half_new, half_old, mean_share, per_pixel[k, a:b], agree_ab)
         changed_ab, moving_ab = changed[a:b], moving[a:b]
         _fill(changed_ab, 0.0)
         for i in range(watched.shape[0]):
@@ -195,9 +207,9 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, 
         first, per_unit = grid[0], grid[1]
         for c in range(C):
             hic, loc, lnc, at = hi[c, a:b], lo[c, a:b], ln[c, a:b], index[c, a:b]
-            mn, mo = means_new[c, a:b], means_old[c, a:b]
+            mn, mo, reciprocal = sums_new[c, a:b], sums_old[c, a:b], per_pixel[3, a:b]
             for x in range(n):
-                both = mn[x] + mo[x] if agree_ab[x] != 0 else hic[x] + loc[x]
+                both = (mn[x] + mo[x]) * reciprocal[x] if agree_ab[x] != 0 else hic[x] + loc[x]
                 at[x] = inverse_bin(both - lnc[x], first, per_unit, last_bin)
             gather(at, inverse[c], at, n)  # (in place: each lane reads its index before its value is stored)
         if C == 3:  # the three channels of a pixel in one iteration: whole interleaved stores
@@ -218,35 +230,71 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, 
     return n_moving
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def _window_constants(W, radius, floor, out):
+    """Per pixel x of a row of W: the floor (linear units) in quantised sums' units over x's window of radius, its
+    left half [x - radius, x] and its right half [x, x + radius], each clipped at the row's ends; then the window's
+    reciprocal count in linear units per sum. (The statement in numpy: app.decode.motion.window_constants.)"""
+    scale = np.float32(MEAN_SCALE)
+    for x in range(W):
+        first, last = max(x - radius, 0), min(x + radius + 1, W)
+        out[0, x] = floor * (scale * np.float32(last - first))
+        out[1, x] = floor * (scale * np.float32(x + 1 - first))
+        out[2, x] = floor * (scale * np.float32(last - x))
+        out[3, x] = np.float32(1.0) / (scale * np.float32(last - first))
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def quantise(value: np.float32) -> np.int32:
+    """A linear value in int32 steps of 1 / MEAN_SCALE, rounded (negative values to 0), in float32 arithmetic."""
+    return np.int32(max(value * np.float32(MEAN_SCALE) + np.float32(0.5), np.float32(0.0)))
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _quantise(values, out):
+    for x in range(values.shape[0]):
+        out[x] = quantise(values[x])
+
+
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _running_sums(u, v, n, su, sv):
-    """su[k] = u[0] + ... + u[k - 1] in float64, added in that order, for k <= n; the same of v into sv."""
-    su[0] = 0.0
-    sv[0] = 0.0
-    acc_u = 0.0
-    acc_v = 0.0
+    """su[k] = u[0] + ... + u[k - 1] for k <= n, and the same of v into sv (exact integers; the sums kept in
+    registers, not read back from the row)."""
+    acc_u = 0
+    acc_v = 0
+    su[0] = 0
+    sv[0] = 0
     for x in range(n):
-        acc_u += np.float64(u[x])
-        acc_v += np.float64(v[x])
+        acc_u += u[x]
+        acc_v += v[x]
         su[x + 1] = acc_u
         sv[x + 1] = acc_v
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _window_means(sums, a, b, lo_off, hi_off, W, out):
-    """out[x - a] = the mean over [x + lo_off, x + hi_off] clipped at the row's ends [0, W), for x in [a, b), from
-    the running sums (float64, cast to float32 last)."""
-    for x in range(a, b):
-        first = max(x + lo_off, 0)
-        last = min(x + hi_off + 1, W)
-        out[x - a] = np.float32((sums[last] - sums[first]) / np.float64(last - first))
+def _window_sums(sums, s0, a, b, lo_off, hi_off, W, out):
+    """out[x - a] = the sum over [x + lo_off, x + hi_off] clipped at the row's ends [0, W), for x in [a, b), from
+    running sums that start at pixel s0 (<= every window's first pixel), as float32 (exact). The pixels whose
+    window is not clipped through shifted views (a loop that vectorises), the others directly."""
+    x0 = min(max(a, -lo_off), b)
+    x1 = max(min(b, W - hi_off - 1), x0)
+    n = x1 - x0
+    top = sums[x0 + hi_off + 1 - s0 : x0 + hi_off + 1 - s0 + n]
+    bottom = sums[x0 + lo_off - s0 : x0 + lo_off - s0 + n]
+    inner = out[x0 - a : x1 - a]
+    for i in range(n):  # (each converted, then subtracted: exact below 2^24, and int32 -> float32 vectorises)
+        inner[i] = np.float32(top[i]) - np.float32(bottom[i])
+    for x in range(a, x0):
+        out[x - a] = np.float32(sums[min(x + hi_off + 1, W) - s0]) - np.float32(sums[max(x + lo_off, 0) - s0])
+    for x in range(x1, b):
+        out[x - a] = np.float32(sums[min(x + hi_off + 1, W) - s0]) - np.float32(sums[max(x + lo_off, 0) - s0])
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _agree_into(u, v, share, floor, agree):
-    """agree[x] = 0 where |u[x] - v[x]| > share (u[x] + v[x]) + floor (two frames' local means disagree)."""
+    """agree[x] = 0 where |u[x] - v[x]| > share (u[x] + v[x]) + floor[x] (two frames' local sums disagree)."""
     for x in range(agree.shape[0]):
-        ok = abs(u[x] - v[x]) <= share * (u[x] + v[x]) + floor
+        ok = abs(u[x] - v[x]) <= share * (u[x] + v[x]) + floor[x]
         agree[x] = agree[x] if ok else np.float32(0.0)
 
 
