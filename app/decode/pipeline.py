@@ -13,9 +13,10 @@ from app.decode.colour import camera_gamma_of
 from app.decode.depth_range import check_depth_range, copy_columns
 from app.decode.fast import average_frames
 from app.decode.mosaic import NO_LEAKS, mosaic_leaks, to_rgb
+from app.decode.mosaic_signs import lacking_signs
 from app.decode.motion import MotionParams, MotionRepair, check_motion_mode
 from app.decode.stripemap import StripeMap
-from app.decode.twoshot import SEGMENTATIONS
+from app.decode.twoshot import SEGMENTATIONS, TwoShotDecoder
 from app.schemes import get_scheme
 from app.triangulate import PointCloud, Triangulator
 from core.calibration import Calibration
@@ -130,7 +131,7 @@ class FrameSetDecoder:
         index in frames of the frame taken last; previous: the frame taken just before the set (it saw the newest
         frame's pattern): with both and motion "auto", a two-shot pair decodes its newest frame where the scene moved
         (the stripe map's info "moving" = the share of such pixels)."""
-        frames, moving = self.repaired(frames, newest, previous)
+        frames, moving = self.mosaic_signs(self.repaired(frames, newest, previous))
         depth = None
         geometry = self.triangulator.moebius_geometry if self.triangulator is not None else None
         if self.kind.depth_in_decode and geometry is not None:
@@ -146,8 +147,16 @@ class FrameSetDecoder:
     ) -> StripeMap:
         """The stripe map alone of a frame set in pattern order (no checks, no triangulation); newest, previous:
         see stripes_and_depth."""
-        frames, moving = self.repaired(list(frames), newest, previous)
+        frames, moving = self.mosaic_signs(self.repaired(list(frames), newest, previous))
         return _noting_motion(self.kind.stripes(self.decoder, frames), moving)
+
+    def mosaic_signs(self, repaired: tuple[list[np.ndarray], float | None]) -> tuple[list[np.ndarray], float | None]:
+        """repaired (frames, moving) with a raw mosaic's two-shot pair given the lacking channel's signs where its
+        columns alias the stripes (app/decode/mosaic_signs.py); as it is for other cameras and schemes."""
+        frames, moving = repaired
+        if self.mosaic is None or not isinstance(self.decoder, TwoShotDecoder) or len(frames) != 2:
+            return frames, moving
+        return list(lacking_signs(frames[0], frames[1], self.mosaic, self.decoder)), moving
 
     def rgb(self, frames: list[np.ndarray] | tuple[np.ndarray, ...]) -> list[np.ndarray]:
         """frames as RGB: raw Bayer frames reconstructed along the stripes (app/decode/mosaic.py), RGB as they are."""
