@@ -48,7 +48,7 @@ class Fuser:
         if settings is None:  # (given settings are taken as they are)
             footprint = 0.5 * (depth_range_mm[0] + depth_range_mm[1]) / calibration.camera_matrix[0, 0]
             settings = for_footprint(TrackSettings(), footprint)
-        self.tracker = Tracker(settings)
+        self.tracker = Tracker(settings, self.maker.K, (w, h))
         self.volume = Volume(voxel_mm, self.maker.K, (w, h), far, surface, min_weight)
         self.stats = FuseStats()
         self.poses: list[PoseRow] = []
