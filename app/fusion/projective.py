@@ -73,6 +73,37 @@ def _exp(x):
     return T
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _nearest_drawn(src, i, A, grid, V, camera, reach, md2):
+    """Scan point i moved by A, and the nearest map point drawn within `reach` pixels of its projection (camera:
+    fx, fy, cx, cy, W, H of the drawn view) closer than sqrt(md2): (its index or -1, the squared distance, the
+    moved point)."""
+    fx, fy, cx, cy, W, H = camera
+    s0, s1, s2 = src[i, 0], src[i, 1], src[i, 2]
+    px = A[0, 0] * s0 + A[0, 1] * s1 + A[0, 2] * s2 + A[0, 3]
+    py = A[1, 0] * s0 + A[1, 1] * s1 + A[1, 2] * s2 + A[1, 3]
+    pz = A[2, 0] * s0 + A[2, 1] * s1 + A[2, 2] * s2 + A[2, 3]
+    j = -1
+    best = md2
+    if pz <= 1.0:
+        return j, best, px, py, pz
+    u0 = int(np.floor(fx * px / pz + cx + 0.5))
+    v0 = int(np.floor(fy * py / pz + cy + 0.5))
+    for dv in range(-reach, reach + 1):
+        for du in range(-reach, reach + 1):
+            u, v = u0 + du, v0 + dv
+            if u < 0 or u >= W or v < 0 or v >= H:
+                continue
+            jj = grid[v * W + u]
+            if jj < 0:
+                continue
+            ex, ey, ez = px - V[jj, 0], py - V[jj, 1], pz - V[jj, 2]
+            d2 = ex * ex + ey * ey + ez * ez
+            if d2 < best:
+                best, j = d2, jj
+    return j, best, px, py, pz
+
+
 @njit(cache=True, nogil=True)
 def icp(src, grid, V, N, fx, fy, cx, cy, W, H, A, max_dist, k, iterations, tol, reach):
     """A (scan camera -> predicted camera) refined; returns (A, correspondences used in the last step). Each scan
@@ -86,28 +117,7 @@ def icp(src, grid, V, N, fx, fy, cx, cy, W, H, A, max_dist, k, iterations, tol, 
         J = np.zeros(6)
         used = 0
         for i in range(src.shape[0]):
-            s0, s1, s2 = src[i, 0], src[i, 1], src[i, 2]
-            px = A[0, 0] * s0 + A[0, 1] * s1 + A[0, 2] * s2 + A[0, 3]
-            py = A[1, 0] * s0 + A[1, 1] * s1 + A[1, 2] * s2 + A[1, 3]
-            pz = A[2, 0] * s0 + A[2, 1] * s1 + A[2, 2] * s2 + A[2, 3]
-            if pz <= 1.0:
-                continue
-            u0 = int(np.floor(fx * px / pz + cx + 0.5))
-            v0 = int(np.floor(fy * py / pz + cy + 0.5))
-            j = -1
-            best = md2
-            for dv in range(-reach, reach + 1):
-                for du in range(-reach, reach + 1):
-                    u, v = u0 + du, v0 + dv
-                    if u < 0 or u >= W or v < 0 or v >= H:
-                        continue
-                    jj = grid[v * W + u]
-                    if jj < 0:
-                        continue
-                    ex, ey, ez = px - V[jj, 0], py - V[jj, 1], pz - V[jj, 2]
-                    d2 = ex * ex + ey * ey + ez * ez
-                    if d2 < best:
-                        best, j = d2, jj
+            j, _, px, py, pz = _nearest_drawn(src, i, A, grid, V, (fx, fy, cx, cy, W, H), reach, md2)
             if j < 0:
                 continue
             dx, dy, dz = px - V[j, 0], py - V[j, 1], pz - V[j, 2]
@@ -142,29 +152,10 @@ def evaluate(src, grid, V, fx, fy, cx, cy, W, H, A, max_dist):
     sq = 0.0
     md2 = max_dist * max_dist
     for i in range(n):
-        s0, s1, s2 = src[i, 0], src[i, 1], src[i, 2]
-        px = A[0, 0] * s0 + A[0, 1] * s1 + A[0, 2] * s2 + A[0, 3]
-        py = A[1, 0] * s0 + A[1, 1] * s1 + A[1, 2] * s2 + A[1, 3]
-        pz = A[2, 0] * s0 + A[2, 1] * s1 + A[2, 2] * s2 + A[2, 3]
-        if pz <= 1.0:
-            continue
-        u0 = int(np.floor(fx * px / pz + cx + 0.5))
-        v0 = int(np.floor(fy * py / pz + cy + 0.5))
-        best = md2
-        for dv in range(-1, 2):
-            for du in range(-1, 2):
-                u, v = u0 + du, v0 + dv
-                if u < 0 or u >= W or v < 0 or v >= H:
-                    continue
-                j = grid[v * W + u]
-                if j < 0:
-                    continue
-                dx, dy, dz = px - V[j, 0], py - V[j, 1], pz - V[j, 2]
-                d2 = dx * dx + dy * dy + dz * dz
-                best = min(best, d2)
-        if best < md2:
+        j, d2, _, _, _ = _nearest_drawn(src, i, A, grid, V, (fx, fy, cx, cy, W, H), 1, md2)
+        if j >= 0:
             inliers += 1
-            sq += best
+            sq += d2
     fitness = inliers / n if n else 0.0
     rmse = np.sqrt(sq / inliers) if inliers else 0.0
     return fitness, rmse
