@@ -156,7 +156,7 @@ def test_projector_window_and_view_in_one_process(tmp_path, xserver, how):
     # every grab: the screen is exactly the pattern the pipeline tagged that flip with; both patterns seen
     assert all(g[2] == "True" for g in grabs), r.stdout
     assert {g[1] for g in grabs} == {"0", "1"}, r.stdout
-    assert "window slscan_live True 640x524" in lines, r.stdout  # 2 x 2 panels of 320x240 + status
+    assert "window slscan_live True 640x542" in lines, r.stdout  # 2 x 2 panels of 320x240 + three status lines
     assert "window slscan_projector True 1024x768" in lines, r.stdout
     assert "projector window left False" in lines, r.stdout
     frames = next(line.split() for line in lines if line.startswith("frames "))
