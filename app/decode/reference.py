@@ -527,8 +527,9 @@ def chain_nodes(stripes, lab, i0, i1, pattern: Pattern, lp: LabelParams) -> tupl
         fitted = np.empty_like(nx)
         for r in range(len(nx)):
             a0 = min(max(r - h, 0), len(nx) - 1 - 2 * h)  # the window of 2h + 1 nodes, kept inside the chain
-            slope, icpt = np.polyfit(nv[a0 : a0 + 2 * h + 1], nx[a0 : a0 + 2 * h + 1], 1)
-            fitted[r] = icpt + slope * nv[r]
+            v, x = nv[a0 : a0 + 2 * h + 1], nx[a0 : a0 + 2 * h + 1]
+            dv = v - v.mean()  # the least-squares line through the window's nodes (np.polyfit's, without its cost)
+            fitted[r] = x.mean() + (dv @ (x - x.mean())) / (dv @ dv) * (nv[r] - v.mean())
         nx = fitted
         _increasing(nx)
     return nx, nv
