@@ -131,7 +131,8 @@ class FrameSetDecoder:
         index in frames of the frame taken last; previous: the frame taken just before the set (it saw the newest
         frame's pattern): with both and motion "auto", a two-shot pair decodes its newest frame where the scene moved
         (the stripe map's info "moving" = the share of such pixels)."""
-        frames, moving = self.mosaic_signs(self.repaired(frames, newest, previous))
+        frames, moving = self.repaired(frames, newest, previous)
+        frames = self.mosaic_signs(frames)
         depth = None
         geometry = self.triangulator.moebius_geometry if self.triangulator is not None else None
         if self.kind.depth_in_decode and geometry is not None:
@@ -147,16 +148,16 @@ class FrameSetDecoder:
     ) -> StripeMap:
         """The stripe map alone of a frame set in pattern order (no checks, no triangulation); newest, previous:
         see stripes_and_depth."""
-        frames, moving = self.mosaic_signs(self.repaired(list(frames), newest, previous))
+        frames, moving = self.repaired(list(frames), newest, previous)
+        frames = self.mosaic_signs(frames)
         return _noting_motion(self.kind.stripes(self.decoder, frames), moving)
 
-    def mosaic_signs(self, repaired: tuple[list[np.ndarray], float | None]) -> tuple[list[np.ndarray], float | None]:
-        """repaired (frames, moving) with a raw mosaic's two-shot pair given the lacking channel's signs where its
-        columns alias the stripes (app/decode/mosaic_signs.py); as it is for other cameras and schemes."""
-        frames, moving = repaired
+    def mosaic_signs(self, frames: list[np.ndarray]) -> list[np.ndarray]:
+        """frames with a raw mosaic's two-shot pair given the lacking channel's signs where its columns alias the
+        stripes (app/decode/mosaic_signs.py); as they are for other cameras and schemes."""
         if self.mosaic is None or not isinstance(self.decoder, TwoShotDecoder) or len(frames) != 2:
-            return frames, moving
-        return list(lacking_signs(frames[0], frames[1], self.mosaic, self.decoder)), moving
+            return frames
+        return list(lacking_signs(frames[0], frames[1], self.mosaic, self.decoder))
 
     def rgb(self, frames: list[np.ndarray] | tuple[np.ndarray, ...]) -> list[np.ndarray]:
         """frames as RGB: raw Bayer frames reconstructed along the stripes (app/decode/mosaic.py), RGB as they are."""
