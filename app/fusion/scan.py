@@ -90,24 +90,17 @@ class ScanMaker:
         # smoothed first: the decoder's small depth ripple follows the projector's stripes, which stay put in the
         # camera's frame, and on a smooth surface it would hold a registration at no motion
         Z = smooth_depth(depth, self.smooth_px)
-        s = stride
-        # only the strided grid is ever read (the centre every stride-th pixel from s on, its neighbours s away):
-        # the points of pixels 0, s, 2s, ... hold every one of them
-        Zs = Z[::s, ::s]
-        P = np.stack([self.ray_x[::s, ::s] * Zs, self.ray_y[::s, ::s] * Zs, Zs], axis=2)
-        s = 1
-        c = P[s:-s:s, s:-s:s]
-        dx = P[s:-s:s, 2 * s :: s][:, : c.shape[1]] - P[s:-s:s, : -2 * s : s][:, : c.shape[1]]
-        dy = P[2 * s :: s, s:-s:s][: c.shape[0]] - P[: -2 * s : s, s:-s:s][: c.shape[0]]
+        # only the strided grid is ever read (each stride-th pixel and its four neighbours stride away): the points
+        # of pixels 0, stride, 2 stride, ...; c is each inner one, its neighbours right, left, below and above
+        Zs = Z[::stride, ::stride]
+        P = np.stack([self.ray_x[::stride, ::stride] * Zs, self.ray_y[::stride, ::stride] * Zs, Zs], axis=2)
+        c = P[1:-1, 1:-1]
+        right, left, below, above = P[1:-1, 2:], P[1:-1, :-2], P[2:, 1:-1], P[:-2, 1:-1]
+        dx = right - left
+        dy = below - above
         zc = c[..., 2]
-        zs = [
-            P[s:-s:s, 2 * s :: s][:, : c.shape[1], 2],
-            P[s:-s:s, : -2 * s : s][:, : c.shape[1], 2],
-            P[2 * s :: s, s:-s:s][: c.shape[0], :, 2],
-            P[: -2 * s : s, s:-s:s][: c.shape[0], :, 2],
-        ]
         ok = zc > 0
-        for z in zs:
+        for z in (right[..., 2], left[..., 2], below[..., 2], above[..., 2]):
             ok &= (z > 0) & (np.abs(z - zc) <= self.max_step * stride)
         n = np.cross(dx[ok], dy[ok])
         norm = np.linalg.norm(n, axis=1, keepdims=True)
@@ -121,8 +114,7 @@ class ScanMaker:
         else:
             # smoothed as the depth: what is left of the stripes in a frame set's colour stays put in the camera
             soft = cv2.GaussianBlur(colour, (0, 0), self.smooth_px)
-            rgb = soft[stride:-stride:stride, stride:-stride:stride][: c.shape[0], : c.shape[1]]
-            rgb = rgb[ok][good].astype(np.float64) / 255.0
+            rgb = soft[::stride, ::stride][1:-1, 1:-1][ok][good].astype(np.float64) / 255.0
         return pts, n, rgb
 
 
