@@ -89,16 +89,21 @@ def test_a_one_channel_frame_without_its_mosaic_is_refused() -> None:
         FrameSetDecoder("two-shot", meta).decode([raw, raw])
 
 
-@pytest.fixture(scope="module", params=[8, 12], ids=["8-bit", "12-bit"])
-def face(request):
-    """The face at this bit depth: a two-shot pair as one colour per pixel, its decoder inputs and truth."""
-    rig = VirtualRig.from_preset("face", bit_depth=request.param, **SIZES)
+def _scene(preset: str, bit_depth: int):
+    """A rig preset at this bit depth: (rig, its calibration with the camera gamma, the two-shot pattern's meta,
+    the pair as one colour per pixel)."""
+    rig = VirtualRig.from_preset(preset, bit_depth=bit_depth, **SIZES)
     cal = rig.calibration
     cal.extra["camera_gamma"] = float(rig.options.camera_gamma)
     ps = make_patterns("two-shot", cal.projector_size)
     meta = {"scheme": "two-shot", "size": list(ps.size), "images": ps.names, **ps.params}
-    frames = [rig.render(im) for im in ps.images]
-    return rig, cal, meta, frames
+    return rig, cal, meta, [rig.render(im) for im in ps.images]
+
+
+@pytest.fixture(scope="module", params=[8, 12], ids=["8-bit", "12-bit"])
+def face(request):
+    """The face at this bit depth: a two-shot pair as one colour per pixel, its decoder inputs and truth."""
+    return _scene("face", request.param)
 
 
 def _decode(face, frames, mosaic):
@@ -143,12 +148,7 @@ def test_the_g_edges_give_the_lacking_channels_aliased_signs(face, mosaic, monke
 @pytest.fixture(scope="module", params=[8, 12], ids=["8-bit", "12-bit"])
 def panel(request):
     """The colour panel at this bit depth (saturated colours: much crosstalk relative to a channel's signal)."""
-    rig = VirtualRig.from_preset("colour_panel", bit_depth=request.param, **SIZES)
-    cal = rig.calibration
-    cal.extra["camera_gamma"] = float(rig.options.camera_gamma)
-    ps = make_patterns("two-shot", cal.projector_size)
-    meta = {"scheme": "two-shot", "size": list(ps.size), "images": ps.names, **ps.params}
-    return rig, cal, meta, [rig.render(im) for im in ps.images]
+    return _scene("colour_panel", request.param)
 
 
 @pytest.mark.parametrize("mosaic", MOSAICS)
