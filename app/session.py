@@ -66,6 +66,9 @@ class Session:
     notices: list[str] = field(default_factory=list)  # warnings for the operator, printed by the commands
     calibration_source: str | None = None  # the calibration file read (for the scan sidecars), None = the virtual rig's
     texture_every: int | None = None  # a white-light texture frame every N frames (capture.texture_every), None = off
+    # what fusion keeps of each scan (camera mm: x0, x1, y0, y1, z0, z1): the virtual rig scene's or a rendered dump's
+    # working volume; None = all of it
+    working_volume_mm: tuple[float, ...] | None = None
 
     def make_loop(self, wrap_projector: Callable[[Any], Any] | None = None, **kw: Any) -> CaptureLoop:
         """Open the devices on the calling thread (a pyglet window belongs to it) and load the patterns.
@@ -338,6 +341,8 @@ def _sim_session(
     session.frame_dtype = np.uint16 if rig.options.bit_depth > 8 else np.uint8
     session.mosaic = rig.mosaic
     session.chroma, session.notices = rig.chroma, notices
+    if rig.scene.working_volume_mm is not None:
+        session.working_volume_mm = tuple(float(v) for v in rig.scene.working_volume_mm)
     _tell(notices)
     return session
 

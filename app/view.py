@@ -615,14 +615,13 @@ class LiveView:
 
 
 def fusion_volume(session: Session, volume_arg: str | None) -> tuple[float, ...] | None:
-    """The working volume fusion keeps of each scan: --volume-mm, else the virtual rig's scene's (if it has one)."""
+    """The working volume fusion keeps of each scan: --volume-mm, else the session's (the virtual rig scene's or a
+    replayed dump's), else None (all of each scan)."""
     from app.argtypes import volume_mm
 
     if volume_arg is not None:
         return volume_mm(volume_arg)
-    rig = getattr(session.sim, "rig", None)
-    scene = getattr(rig, "scene", None)
-    return getattr(scene, "working_volume_mm", None)
+    return session.working_volume_mm
 
 
 def run_view(session: Session, args: argparse.Namespace) -> int:

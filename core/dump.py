@@ -28,6 +28,7 @@ from core.paths import resolves_inside
 from core.pattern_export import read_patterns, read_patterns_meta, write_patterns
 from core.patterns import PatternSet
 from core.wallclock import now_ns, parse_wall_clock, wall_clock_iso
+from core.working_volume_field import working_volume_field
 from core.yamlfile import parse_yaml
 
 FORMAT = "slscan-dump"
@@ -38,6 +39,8 @@ RECORDED_KEY = "recorded_utc"
 # header key: the pattern tag of a white-light texture frame, always len(images) of patterns.yaml: one past the
 # patterns, so a reader that does not know it sees a tag outside the scheme and never pairs the frame
 TEXTURE_KEY = "texture_pattern"
+# header key: a rendered scene's working volume (camera mm), which fusion keeps of each scan (slscan sim render)
+WORKING_VOLUME_KEY = "working_volume_mm"
 
 # PNG settings by level, measured on a 640x480 stripe frame with sensor noise (one core, this machine):
 #   0: stored, no filter       ~1 ms/frame, 900 KB  (the live default: keeps up at 60 Hz with room)
@@ -231,6 +234,12 @@ class Dump:
         r = self.meta.get("depth_range_mm")
         return None if r is None else (float(r[0]), float(r[1]))
 
+    def working_volume_mm(self) -> tuple[float, ...] | None:
+        """The scene's working volume (camera mm), which fusion keeps of each scan; None in a dump that has none
+        (checked by read_dump)."""
+        where = f"{self.folder / INDEX}: field '{WORKING_VOLUME_KEY}'"
+        return working_volume_field(self.meta.get(WORKING_VOLUME_KEY), where)
+
     @property
     def mosaic(self) -> str | None:
         """The Bayer mosaic of the raw one-channel frames, None for RGB frames (checked by read_dump)."""
@@ -301,6 +310,7 @@ def read_dump(folder: str | os.PathLike) -> Dump:
     if "calibration" in meta:
         _inside(folder, meta["calibration"], "calibration")
     depth_range_field(meta.get("depth_range_mm"), f"{path}: field 'depth_range_mm'")
+    working_volume_field(meta.get(WORKING_VOLUME_KEY), f"{path}: field '{WORKING_VOLUME_KEY}'")
     if meta.get("mosaic") is not None:
         if not isinstance(meta["mosaic"], str):
             raise InputError(f"{path}: field 'mosaic' must be one of RGGB, GRBG, GBRG, BGGR, found {meta['mosaic']!r}")

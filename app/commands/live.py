@@ -62,27 +62,35 @@ def register(sub: argparse._SubParsersAction) -> None:
         "config's capture.texture_every; else only on a snapshot or the t key)",
     )
     add_publish_arguments(p)
+    add_fusion_arguments(p)
+    p.set_defaults(func=run)
+
+
+def add_fusion_arguments(p: argparse.ArgumentParser) -> None:
+    """--fuse, --voxel-mm, --volume-mm: live fusion (slscan live, slscan replay)."""
     p.add_argument(
         "--fuse",
         action="store_true",
         help="headless: register and integrate every scan into a mesh (slscan[fusion]; in the window: the f key)",
     )
     p.add_argument(
-        "--voxel-mm", type=float, default=0.5, metavar="V", help="fusion (--fuse, f): TSDF voxel size (default 0.5)"
+        "--voxel-mm",
+        type=positive_float,
+        default=0.5,
+        metavar="V",
+        help="fusion (--fuse, f): TSDF voxel size (default 0.5)",
     )
     p.add_argument(
         "--volume-mm",
         metavar="X0,X1,Y0,Y1,Z0,Z1",
-        help="fusion (--fuse, f): the working volume, camera mm (default: the virtual rig scene's, else all)",
+        help="fusion (--fuse, f): the working volume, camera mm (default: the virtual rig scene's or the dump's, "
+        "else all)",
     )
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     if args.frames is not None and args.frames < 1:
         raise InputError(f"--frames {args.frames}: must be at least 1")
-    if not args.voxel_mm > 0:  # (the window's f key and --fuse both use it)
-        raise InputError(f"--voxel-mm {args.voxel_mm:g}: must be > 0")
     if not args.headless and not os.environ.get("DISPLAY"):
         # The session itself needs no screen: run it headless rather than refuse (say so on stderr).
         print(
@@ -173,7 +181,7 @@ def run_headless(session: Session, args: argparse.Namespace, label: str = "live"
     else:
         print("no depth map was produced: nothing written")
     if fusion is not None:  # after the last scan: that folder must be new when it is written
-        _finish_fusion(fusion, out)
+        _finish_fusion(fusion, out, label)
     if pipe.error:
         print(f"slscan {label}: stopped: {pipe.error}", file=sys.stderr)
         return 2 if pipe.latest is None else 1
@@ -198,7 +206,9 @@ def _open_fusion(session: Session, args: argparse.Namespace) -> object | None:
     from app.view import fusion_volume
 
     rng = session.depth_range_mm or (100.0, 5000.0)
-    return LiveFusion(session.calibration, rng, fusion_volume(session, args.volume_mm), args.voxel_mm)
+    fusion = LiveFusion(session.calibration, rng, fusion_volume(session, args.volume_mm), args.voxel_mm)
+    fusion.wait_ready()  # (Open3D and the tracking kernels loaded before capture: the first scans are not lost)
+    return fusion
 
 
 def _both(a: object, b: object) -> object:
@@ -212,7 +222,7 @@ def _both(a: object, b: object) -> object:
     return sink
 
 
-def _finish_fusion(fusion: object, out: Path) -> None:
+def _finish_fusion(fusion: object, out: Path, label: str) -> None:
     from app.fusion.mesh_io import write_mesh
     from core.trajectory import write_trajectory
 
@@ -227,7 +237,7 @@ def _finish_fusion(fusion: object, out: Path) -> None:
             f"{(1 / np.mean(s.integrate_s)) if s.integrate_s else 0:.1f} scans/s of CPU time"
         )
     if fusion.error:
-        print(f"slscan live: fusion stopped: {fusion.error}", file=sys.stderr)
+        print(f"slscan {label}: fusion stopped: {fusion.error}", file=sys.stderr)
     if s.integrated:
         out.mkdir(parents=True, exist_ok=True)
         write_trajectory(out / "model.trajectory.csv", fusion.fuser.poses)
@@ -235,7 +245,7 @@ def _finish_fusion(fusion: object, out: Path) -> None:
             ply, obj = write_mesh(fusion.fuser.mesh(), out / "model.ply")
             print(f"model ({s.integrated} scans) written to {ply}, {obj}")
         except InputError as exc:
-            print(f"slscan live: fusion: {exc}", file=sys.stderr)
+            print(f"slscan {label}: fusion: {exc}", file=sys.stderr)
 
 
 def print_figures(fig: dict) -> None:

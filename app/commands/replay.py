@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from app.argtypes import positive_float, positive_int
+from app.commands.live import add_fusion_arguments, run_headless
 from app.live_pipeline import DECODE_WORKERS, WORKERS_HELP
 from app.publisher import add_publish_arguments, open_publisher
 from core.errors import InputError
@@ -20,6 +21,7 @@ examples:
   slscan replay rec/ --headless --out last/  # as fast as it decodes; prints the figures, saves the last scan
   slscan replay rec/ --headless --realtime   # at the recorded pace (as the live session saw it)
   slscan replay rec/ --headless --realtime --publish tcp://127.0.0.1:5556   # and stream its scans
+  slscan replay tt/ --headless --realtime --fuse   # live fusion at the recorded pace: model.ply in --out
 
 The dump's own tags, calibration and depth range are used (--calibration overrides the calibration).
 """
@@ -40,6 +42,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--timeout", type=positive_float, default=2.0, metavar="S", help="camera timeout in seconds (default 2)"
     )
     add_publish_arguments(p)
+    add_fusion_arguments(p)
     p.set_defaults(func=run, record=None, png_level=0)
 
 
@@ -76,6 +79,7 @@ def replay_session(dump_path: str, calibration: str | None = None, realtime: boo
         if dtype in (np.uint8, np.uint16):  # (other frames fail set by set, each with its file named)
             session.frame_dtype = dtype
     session.mosaic = dump.mosaic
+    session.working_volume_mm = dump.working_volume_mm()
     session.calibration_source = str(
         Path(calibration).resolve() if calibration else dump.folder / dump.meta["calibration"]
     )
@@ -95,8 +99,6 @@ def run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     if args.headless:
-        from app.commands.live import run_headless
-
         session = replay_session(args.dump, args.calibration, realtime=args.realtime)
         if args.frames is None:
             args.frames = 10**12  # the whole dump: the replay camera ends the run

@@ -116,7 +116,7 @@ def write_ground_truth(gt: object, folder: Path) -> None:
 
 def run_render(args: argparse.Namespace) -> int:
     from app.texture import texture_image, texture_index
-    from core.dump import DumpWriter
+    from core.dump import WORKING_VOLUME_KEY, DumpWriter
     from core.patterns import parse_size
     from core.surface_sample import write_surface_sample
     from core.trajectory import PoseRow, write_trajectory
@@ -143,7 +143,7 @@ def run_render(args: argparse.Namespace) -> int:
     white = rig.prepare(texture_image(patterns)) if every else None
     extra: dict = {"source": f"slscan sim render --scene {rig.scene.name}"}
     if rig.scene.working_volume_mm is not None:
-        extra["working_volume_mm"] = list(rig.scene.working_volume_mm)
+        extra[WORKING_VOLUME_KEY] = list(rig.scene.working_volume_mm)
     moving = rig.moving
     true_poses = []
     gt_dir = out / "ground_truth"

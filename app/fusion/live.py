@@ -5,6 +5,10 @@ is replaced and counted `late`); the fusion thread tracks every scan it takes, a
 no newer scan is already waiting or when INTEGRATE_EVERY_S has passed since the last integration (else `skipped`):
 tracking keeps up first, and integration still gets its share when tracking alone takes all the time there is.
 
+The thread first warms fusion up (app/fusion/warm_up.py: Open3D and the tracking kernels loaded before the first
+real scan); a headless session waits for that before capture starts (`wait_ready`), the operator window does not
+(its state line says "starting" meanwhile).
+
 `save` (the operator window's key, on a thread of its own) takes the model's mesh and poses between two scans (one
 lock, held by the fusion thread for each scan and by `save` while it copies the model out), so a mesh is never read
 from a volume half-way through an integration; scans that come meanwhile wait in the mailbox and count late.
@@ -20,6 +24,7 @@ from typing import Any
 from app.decode.mosaic import to_rgb
 from app.fusion.colour import scan_colour
 from app.fusion.fuser import Fuser
+from app.fusion.warm_up import warm_up
 from app.recorder import lower_thread_priority
 from core.calibration import Calibration
 
@@ -36,6 +41,8 @@ class LiveFusion:
         voxel_mm: float,
     ) -> None:
         self.fuser = Fuser(calibration, depth_range_mm, volume_mm, voxel_mm)
+        self._warm_up_args = (calibration, depth_range_mm, volume_mm, voxel_mm)
+        self._ready = threading.Event()
         self._cond = threading.Condition()
         self._slot: Any = None
         self._stop = False
@@ -56,8 +63,19 @@ class LiveFusion:
             self._slot = result
             self._cond.notify()
 
+    def wait_ready(self, timeout_s: float | None = None) -> bool:
+        """Wait until the warm-up is over (or failed: see error); whether it is."""
+        return self._ready.wait(timeout_s)
+
     def _run(self) -> None:
         lower_thread_priority(FUSION_NICENESS)
+        try:
+            warm_up(*self._warm_up_args)
+        except Exception as exc:  # reported like a failed scan; capture goes on regardless
+            self.error = f"{type(exc).__name__}: {exc}"
+            return
+        finally:
+            self._ready.set()
         last_integration = float("-inf")
         while True:
             with self._cond:
@@ -101,6 +119,8 @@ class LiveFusion:
             state = "FAILED"
         elif not self.running:
             state = "stopped"
+        elif not self._ready.is_set():
+            state = "starting"
         elif s.scans == 0:
             state = "waiting"
         elif s.dropped_in_a_row:

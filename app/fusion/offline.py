@@ -55,8 +55,8 @@ def fuse_dump(
         raise InputError(f"{dump.folder}: {len(sets)} complete frame set(s): fusion needs at least {MIN_SCANS} scans")
     rng = dump.depth_range_mm() or (100.0, 5000.0)
     volume = options.volume_mm
-    if volume is None and dump.meta.get("working_volume_mm") is not None:
-        volume = tuple(float(v) for v in dump.meta["working_volume_mm"])
+    if volume is None:
+        volume = dump.working_volume_mm()
     fuser = Fuser(calibration, rng, volume, options.voxel_mm, min_weight=options.min_weight)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", EmptyResultWarning)
