@@ -75,7 +75,8 @@ class Fuser:
         t0 = time.thread_time()
         st = self.tracker.settings
         # (the map's colours serve the coloured ICP only: without it the colour is not smoothed and sampled)
-        pts, nrm, rgb = self.maker.points_and_normals(scan.depth, st.stride, scan.colour if st.colour else None)
+        depth = scan.depth if scan.track_depth is None else scan.track_depth
+        pts, nrm, rgb = self.maker.points_and_normals(depth, st.stride, scan.colour if st.colour else None)
         res = self.tracker.track(pts, nrm, rgb, scan.frame_id)
         self.stats.track_s.append(time.thread_time() - t0)
         if self.keep:
