@@ -38,7 +38,7 @@ class TrackSettings:
     fine_tolerance: float = 1e-7  # relative change of fitness and RMSE that ends the fine stage (Open3D's ICP)
     step_tolerance: float = 1e-7  # the projective ICP's: the norm of a step's twist (rad and mm) that ends a stage
     min_fitness: float = 0.5  # share of the scan's points with a map point within fine_mm
-    max_rmse_mm: float = 0.6
+    max_rmse_mm: float = 0.65  # the scans of the bench scenes fit at 0.50-0.63 mm (docs/performance.md)
     max_step_deg: float = 8.0  # from the prediction
     max_step_mm: float = 15.0
     max_incidence_deg: float = 70.0  # steeper points are not added to the map (their depth is the least sure)
