@@ -34,6 +34,7 @@ class FuseOptions:
     min_weight: float = 3.0
     max_dropped_in_a_row: int = MAX_DROPPED_IN_A_ROW
     motion: str = "auto"
+    refine: bool = True  # register every scan again against the other views once all are tracked (refine.py)
 
 
 def fuse_dump(
@@ -57,7 +58,7 @@ def fuse_dump(
     volume = options.volume_mm
     if volume is None:
         volume = dump.working_volume_mm()
-    fuser = Fuser(calibration, rng, volume, options.voxel_mm, min_weight=options.min_weight)
+    fuser = Fuser(calibration, rng, volume, options.voxel_mm, min_weight=options.min_weight, keep=options.refine)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", EmptyResultWarning)
         warnings.simplefilter("ignore", DepthRangeWarning)
@@ -79,6 +80,8 @@ def fuse_dump(
                     f"{fuser.stats.dropped_in_a_row} scans in a row failed to register (last: {res.reason})",
                     fuser,
                 )
+    if options.refine:
+        fuser.refine()
     if fuser.stats.integrated < MIN_SCANS:
         raise TrackingLostError(
             f"{dump.folder}: only {fuser.stats.integrated} scan(s) registered: too few to build a model", fuser

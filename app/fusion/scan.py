@@ -21,6 +21,8 @@ class Scan:
     depth: np.ndarray  # (H, W) float32 Z mm on the pinhole grid, 0 = none
     colour: np.ndarray  # (H, W, 3) uint8 RGB on the same grid
     frame_id: int  # the newest frame's id: the geometry is that frame's
+    # what registration reads: the depth without the pixels near a silhouette or depth edge (None: depth itself)
+    track_depth: np.ndarray | None = None
 
 
 class ScanMaker:
@@ -67,11 +69,13 @@ class ScanMaker:
         if self.volume is not None:
             out = self.crop(out)
         # silhouettes and depth edges: the decoder's least sure pixels, and fixed in the camera's frame, so they
-        # would pull a registration toward no motion; the pixels within edge_px of one are left out
+        # would pull a registration toward no motion; the pixels within edge_px of one are left out of it. The
+        # volume takes them: over the views the TSDF averages their error, and without them the surface a path
+        # shows only near the silhouette is missing (docs/performance.md, "Whole models")
         good = cv2.erode((out > 0).astype(np.uint8), self._edge_kernel)
-        out[good == 0] = 0
+        inner = np.where(good > 0, out, 0).astype(np.float32)
         col = cv2.remap(colour, self._mx, self._my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        return Scan(out, col, frame_id)
+        return Scan(out, col, frame_id, inner)
 
     def crop(self, depth: np.ndarray) -> np.ndarray:
         """Depth outside the working volume (camera mm) set to none."""
