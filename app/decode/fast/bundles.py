@@ -116,12 +116,12 @@ class ClassifyScratch(NamedTuple):
 class LabelScratch(NamedTuple):
     """One row of labelling, for up to n runs.
 
-    keys, pos: the windows' keys and sequence positions; confirmed: each window's position if confirmed (six
-    -1 first); label: the runs' labels; linked_next, starts, ends (int8) and first_run, last_run: the chains'
-    ends; nodes_x, nodes_v, smoothed: a chain's nodes (pixel, projector column); node_px, first_copy, node_lo,
-    node_hi: the copy vote per node; votes: per copy. seg_lines (int64) holds each segment's line as a float32
-    pair (column at the chain's first pixel, slope), written through its float32 view seg_halves; px_lines and
-    px_halves likewise per pixel; seg_first and seg_of map pixels to segments."""
+    keys, pos: the windows' keys and sequence positions; confirmed: each window's offset (position less its index, mod
+    the period) if confirmed (six -1 first); label: the runs' labels; linked_next, starts, ends (int8) and first_run,
+    last_run: the chains' ends; nodes_x, nodes_v, smoothed: a chain's nodes (pixel, projector column); node_px,
+    first_copy, node_lo, node_hi: the copy vote per node; votes: per copy. seg_lines (int64) holds each segment's line
+    as a float32 pair (column at the chain's first pixel, slope), written through its float32 view seg_halves; px_lines
+    and px_halves likewise per pixel; seg_first and seg_of map pixels to segments."""
 
     keys: np.ndarray
     pos: np.ndarray

@@ -29,10 +29,12 @@ def chain_ends(nr: int, runs: Runs, period: int, scratch: LabelScratch) -> int:
     cont = scratch.linked_next
     starts = scratch.starts
     ends = scratch.ends
+    per = np.int32(period)
     for i in range(nr):
+        # int32 throughout, eight to a vector (numba widens int32 arithmetic to int64)
         li = lab[i]
-        nxt = lab[i + 1] if i + 1 < nr else -1
-        cont[i] = link[i] & (li >= 0) & (nxt == wrap(li + 1, period))
+        nxt = lab[i + 1] if i + 1 < nr else np.int32(-1)
+        cont[i] = link[i] & (li >= 0) & (nxt == wrap(np.int32(li + 1), per))
     for i in range(nr):
         labelled = lab[i] >= 0
         starts[i] = labelled & ((i == 0) or (cont[i - 1] == 0))
@@ -63,10 +65,12 @@ def chain_nodes(i0: int, i1: int, runs: Runs, settings: LabelSettings, scratch: 
 
     The chain's runs are read through views from i0 (an index i0 + q of unknown sign gets numba's negative-index
     fix per element, which turns the loads into gathers); the values are small multiples of 0.5, so the float
-    sums equal the integer products exactly."""
+    sums equal the integer products exactly. Integers reach float through int32: int64 -> float has no vector
+    instruction before AVX-512."""
     nx = scratch.nodes_x
     nv = scratch.nodes_v
     sw = settings.stripe_width
+    swf = np.float64(sw)
     base = scratch.label[i0]
     if settings.edges_mode:
         nn = i1 - i0
@@ -74,15 +78,15 @@ def chain_nodes(i0: int, i1: int, runs: Runs, settings: LabelSettings, scratch: 
         v0 = (base + 1) * sw - 0.5
         for q in range(nn):
             nx[q] = e_c[q]
-            nv[q] = v0 + q * sw
+            nv[q] = v0 + np.int32(q) * swf
     else:
         nn = i1 - i0 + 1
         rs_c = runs.start[i0:]
         re_c = runs.end[i0:]
         v0 = base * sw + 0.5 * (sw - 1)
         for q in range(nn):
-            nx[q] = 0.5 * (rs_c[q] + re_c[q])
-            nv[q] = v0 + q * sw
+            nx[q] = 0.5 * np.int32(rs_c[q] + re_c[q])
+            nv[q] = v0 + np.int32(q) * swf
     if nn < 2:
         return nn  # no segment to interpolate on (only with a window of k < 3 in the edges mode)
     increasing(nx, nn)
@@ -155,8 +159,13 @@ def copy_shift(
     inv_span = 1.0 / copy_span  # a multiply, not a division (exact for the usual power-of-2 span)
     pw = settings.proj_width - 0.5
     xr = scratch.node_px
+    wmax = np.float64(W - 1)
     for r in range(nn):
-        xr[r] = min(max(int(nx[r] + 0.5), 0), W - 1)
+        # clamped in float (NaN -> 0), then converted to int32, which equals clamping int(): float -> int64 has
+        # no vector instruction before AVX-512
+        t = nx[r] + 0.5
+        t = t if t > 0.0 else 0.0
+        xr[r] = np.int32(t if t < wmax else wmax)
     glo = scratch.node_lo
     ghi = scratch.node_hi
     gather(glo, lo[y], xr, nn)
@@ -168,7 +177,7 @@ def copy_shift(
         ghi[r] = pw if hv > pw else hv
         # clamped in float: int() of NaN or of values past int64 is undefined (x86 gives INT64_MIN)
         qf = np.ceil((glo[r] - v) * inv_span)
-        q0[r] = int(min(qf, n_copies)) if qf > 0.0 else 0
+        q0[r] = np.int32(min(qf, n_copies)) if qf > 0.0 else np.int32(0)
     votes = scratch.votes
     if n_copies <= 4:
         # the usual few copies counted in one pass over the nodes

@@ -80,14 +80,17 @@ def row_votes(out: ChainMap, y: int, tol: float) -> None:
     cu = (y - 1) % chain.shape[0]
     tol32 = np.float32(tol)  # compared with float32 differences without a conversion per pixel
     for c in range(first[y - 1], first[y]):
-        ag = 0
-        dg = 0
+        # the chain id and counts in int32, the lanes of the int32 ids and float32 columns (numba widens int32
+        # arithmetic to int64)
+        c32 = np.int32(c)
+        ag = np.int32(0)
+        dg = np.int32(0)
         for xi in range(span[c, 0], span[c, 1] + 1):
             x = np.uint64(xi)  # unsigned: no negative-index fix per pixel (which turns the loads into gathers)
-            pair = (chain[cu, x] == c) & (chain[cy, x] >= 0)
+            pair = (chain[cu, x] == c32) & (chain[cy, x] >= 0)
             close = abs(col[y - 1, x] - col[y, x]) <= tol32
-            ag += pair & close
-            dg += pair & (not close)
+            ag = np.int32(ag + (pair & close))
+            dg = np.int32(dg + (pair & (not close)))
         agree[c] += ag
         disagree[c] += dg
 

@@ -26,7 +26,8 @@ def _column_at(q, line, lo_v, hi_v, use_range, lo, hi, y, xx):
     """The column of pixel xx = xa + q on its segment's line (line: float32 (column at xa, slope), interleaved),
     and whether it is kept: within the chain's column span [lo_v, hi_v] and, with use_range, the pixel's
     depth-range interval. float32 throughout: twice the lanes of float64, and the columns are stored as float32."""
-    v = line[2 * q] + np.float32(q) * line[2 * q + 1]
+    # q < 2**24 through int32: exact, and int64 -> float has no vector instruction before AVX-512
+    v = line[2 * q] + np.float32(np.int32(q)) * line[2 * q + 1]
     ok = (v >= lo_v) & (v <= hi_v)
     if use_range:
         ok &= (v >= lo[y, xx]) & (v <= hi[y, xx])
@@ -50,7 +51,12 @@ def segment_values(
     (s never decreases). first: scratch for nn values; seg_of (integer) scratch and out need room for nxp + 8."""
     short = True
     for r in range(1, nn - 1):
-        first[r] = min(max(int(np.floor(nx[r])) + 1 - xa, 0), nxp)
+        # clamped in float (NaN -> 0), then converted to int32: float -> int64 has no vector instruction before
+        # AVX-512, and the clamped value is a small integer, so this equals clamping int(floor) + 1 - xa
+        f = np.floor(nx[r]) + np.float64(1 - xa)
+        f = f if f > 0.0 else 0.0
+        f = f if f < nxp else np.float64(nxp)
+        first[r] = np.int32(f)
     for r in range(1, nn - 2):
         short &= first[r + 1] - first[r] <= 8
     if short:
@@ -145,20 +151,21 @@ def write_chain(
         if pe >= xa and chain[cy, pe] == c - 1:
             shared = pe
             shared_col = col[y, pe]
-    n = 0
-    ag = 0
-    dg = 0
+    # the counts in int32, the lanes of the float32 columns (numba widens int32 arithmetic to int64)
+    n = np.int32(0)
+    ag = np.int32(0)
+    dg = np.int32(0)
     for q in range(nxp):
         xx = xa + q
         v32, ok = _column_at(q, line, lo_v, hi_v, use_range, lo, hi, y, xx)
         if ok:
             col[y, xx] = v32
             chain[cy, xx] = c
-        n += ok
+        n = np.int32(n + ok)
         pair = ok & above & (chain[cu, xx] >= 0)
         close = abs(col[up, xx] - v32) <= tol32
-        ag += pair & close
-        dg += pair & (not close)
+        ag = np.int32(ag + (pair & close))
+        dg = np.int32(dg + (pair & (not close)))
     npx[c] = n
     agree[c] = ag
     disagree[c] = dg

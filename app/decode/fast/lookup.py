@@ -76,18 +76,12 @@ def window_positions(
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _window_label(c, t, period):
-    """The label a confirmed window at position c gives its run t, -1 for no window (c < 0); int32 throughout
-    (numba widens int32 arithmetic to int64, which would halve the vector)."""
-    v = np.int32(c + t)
-    v = np.int32(v - period) if v >= period else v
-    return v if c >= 0 else np.int32(-1)
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _merge_labels(a, b):
-    """Two windows' int32 labels for one run: -1 none, -2 disagreeing (associative and commutative)."""
-    return b if a == -1 else (a if (b == -1) | (b == a) else np.int32(-2))
+def _mod(j, per, inv):
+    """j mod per for 0 <= j < 2**24 in int32 lanes, the quotient from a float32 product (at most one off) and
+    corrected (no vector integer division)."""
+    r = np.int32(j - np.int32(np.int32(np.float32(j) * inv) * per))
+    r = np.int32(r + per) if r < 0 else r
+    return np.int32(r - per) if r >= per else r
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
@@ -95,16 +89,20 @@ def confirmed_labels(nr: int, pos: np.ndarray, lab: np.ndarray, k: int, period: 
     """lab[i] = the label of run i from the confirmed windows over it (a window confirmed by an adjacent one
     that continues it), -1 where none, -2 where they disagree. cw: scratch for nr + k - 1 values (int32).
 
-    For the usual k = 7 in two branch-free vectorised passes: each window confirmed or not, then each run's
-    label from its seven windows. That gives the window loop's labels: continuing windows give their shared
-    runs the same labels, so taking every confirmed window's labels changes nothing."""
-    if k == 7 and nr >= 3:
-        # cw[j + 6] = window j's position where it is confirmed, else -1 (and -1 before window 0)
+    For the usual k = 7 (and a period of at least k) in two branch-free vectorised passes. Window j at position
+    p gives its run i = j + t the label (p + t) mod period = (o + i) mod period with its offset
+    o = (p - j) mod period, so the windows over a run agree exactly when their offsets are equal: the first pass
+    stores each confirmed window's offset (-1 if not confirmed), the second takes the least and the greatest of
+    the seven over each run. Continuing windows give their shared runs the same labels, so taking every
+    confirmed window's labels gives the window loop's."""
+    if k == 7 and nr >= 3 and period >= k:
+        # cw[j + 6] = window j's offset where it is confirmed, else -1 (and -1 before window 0)
         none = np.int32(-1)
         for j in range(6):
             cw[j] = none
         per = np.int32(period)
         one = np.int32(1)
+        inv = np.float32(1.0) / np.float32(period)
         for j in range(nr):
             # int32 throughout, eight to a vector (numba widens int32 arithmetic to int64); positions are < period
             p = np.int32(pos[j])
@@ -113,20 +111,26 @@ def confirmed_labels(nr: int, pos: np.ndarray, lab: np.ndarray, k: int, period: 
             after = wrap(np.int32(pp + one), per)
             nxt = wrap(np.int32(p + one), per)
             ok = ((pp >= 0) & (p == after)) | ((p >= 0) & (pn == nxt))
-            cw[j + 6] = p if ok else none
+            o = np.int32(p - _mod(np.int32(j), per, inv))  # in (-period, period)
+            o = np.int32(o + per) if o < 0 else o
+            cw[j + 6] = o if ok else none
         for i in range(nr):
-            # window i - t gives run i the label p + t; the seven merged as a tree (the merge is associative)
-            c0 = _window_label(cw[i + 6], 0, per)
-            c1 = _window_label(cw[i + 5], 1, per)
-            c2 = _window_label(cw[i + 4], 2, per)
-            c3 = _window_label(cw[i + 3], 3, per)
-            c4 = _window_label(cw[i + 2], 4, per)
-            c5 = _window_label(cw[i + 1], 5, per)
-            c6 = _window_label(cw[i], 6, per)
-            lv = _merge_labels(
-                _merge_labels(_merge_labels(c0, c1), _merge_labels(c2, c3)), _merge_labels(_merge_labels(c4, c5), c6)
-            )
-            lab[i] = lv
+            # the seven windows i - 6 .. i: the greatest offset, and the least as unsigned (-1 is the
+            # greatest unsigned value, so unconfirmed windows drop out of the least)
+            a0 = cw[i]
+            a1 = cw[i + 1]
+            a2 = cw[i + 2]
+            a3 = cw[i + 3]
+            a4 = cw[i + 4]
+            a5 = cw[i + 5]
+            a6 = cw[i + 6]
+            hi = max(max(max(a0, a1), max(a2, a3)), max(max(a4, a5), a6))
+            u0, u1, u2, u3 = np.uint32(a0), np.uint32(a1), np.uint32(a2), np.uint32(a3)
+            u4, u5, u6 = np.uint32(a4), np.uint32(a5), np.uint32(a6)
+            lo_u = min(min(min(u0, u1), min(u2, u3)), min(min(u4, u5), u6))
+            lv = wrap(np.int32(hi + _mod(np.int32(i), per, inv)), per)  # both < period: one wrap
+            lv = lv if lo_u == np.uint32(hi) else np.int32(-2)
+            lab[i] = lv if hi >= 0 else none
         return
     for i in range(nr):
         lab[i] = -1

@@ -99,10 +99,12 @@ def _link_pass_impl(nr, fr, A, trans, gap_max, runs):
             inf = ls.info
             wj = ls.weight
             if trans.bits:  # two-shot codes: weight, channel and link from the codes' bits (see _bit_link)
+                # int32 factors, so that the product is int32 too (AVX2 has no 64-bit vector multiply)
+                w4 = np.int32(W << 2)
                 for j in range(n):
                     wb, cb, okb = _bit_link(rc[j], rc[j + 1])
                     wj[j] = wb
-                    inf[j] = np.int64(okb) | ((cb * W) << 2)
+                    inf[j] = np.int32(okb) | np.int32(np.int32(cb) * w4)
             else:
                 info = trans.info
                 for t in range(info.shape[0]):

@@ -288,10 +288,11 @@ def _labels_by_windows(pos, k, period):
     return lab
 
 
+@pytest.mark.parametrize("period", [16, 13, 7])
 @pytest.mark.parametrize("nr", [1, 2, 3, 7, 8, 40, 300])
-def test_vectorised_confirmed_labels_equal_the_window_loop(nr):
+def test_vectorised_confirmed_labels_equal_the_window_loop(nr, period):
     rng = np.random.default_rng(nr)
-    period, k = 16, 7
+    k = 7
     for trial in range(60):
         # continuing stretches (with wrap-around), isolated windows, gaps and clashing stretches
         steps = np.where(rng.random(nr) < 0.8, 1, rng.integers(0, period, nr))
