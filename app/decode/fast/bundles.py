@@ -36,7 +36,7 @@ class Classifier(NamedTuple):
     t_rel: np.float32
     t_rel_edge: np.float32
     block: int
-    lacking: tuple[int, int, int] = NO_LACKING
+    lacking: tuple[int, int, int]
 
 
 class StripeCode(NamedTuple):
