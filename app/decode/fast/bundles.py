@@ -108,14 +108,20 @@ class EventScratch(NamedTuple):
 
 class LackingScratch(NamedTuple):
     """One row of the lacking channel's signs (lacking.py), W pixels: per block of 8 the max |dG| at 1 + b with
-    zero guards (g_max), the strong G signs (sign) and G's edges (edges); per usable run of constant G its
-    edges (e0, e1), first and last pixel (x0, x1), first and last column holding the channel (s0, s1), the
-    sign changes seen there (changes) and its length per seen stripe (ratio); the pixels whose sign flips
-    (flips)."""
+    zero guards (g_max), the strong G signs (sign) and G's edges (edges); counts before each pixel (W + 1,
+    int32) of the pixels without a strong G sign (no_g), of the channel's columns without a sign (no_c) and of
+    its sign changes from the column two to the left (c_changes), and the channel's signs at its columns
+    (c_sign, int8); per usable run of constant G its edges (e0, e1), first and last pixel (x0, x1), first and
+    last column holding the channel (s0, s1), the sign changes seen there (changes) and its length per seen
+    stripe (ratio); the pixels whose sign flips (flips)."""
 
     g_max: np.ndarray
     sign: np.ndarray
     edges: np.ndarray
+    no_g: np.ndarray
+    no_c: np.ndarray
+    c_changes: np.ndarray
+    c_sign: np.ndarray
     e0: np.ndarray
     e1: np.ndarray
     x0: np.ndarray

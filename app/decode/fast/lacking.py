@@ -54,6 +54,10 @@ def lacking_scratch(W: int) -> LackingScratch:
         np.zeros((W + 7) // 8 + 2, np.float32),
         np.zeros(W, np.int8),
         np.empty(W, np.float64),
+        np.zeros(W + 1, np.int32),
+        np.zeros(W + 1, np.int32),
+        np.zeros(W + 1, np.int32),
+        np.zeros(W, np.int8),
         np.empty(W, np.float64),
         np.empty(W, np.float64),
         np.empty(W, np.int64),
@@ -116,6 +120,7 @@ def lacking_flips(g: np.ndarray, c: np.ndarray, cx: int, s: LackingScratch) -> i
     bmax = s.g_max
     sg = s.sign
     edges = s.edges
+    no_g, no_c, c_changes, c_sign = s.no_g, s.no_c, s.c_changes, s.c_sign
     r_e0, r_e1, r_x0, r_x1, r_s0, r_s1, r_c, ratio = s.e0, s.e1, s.x0, s.x1, s.s0, s.s1, s.changes, s.ratio
     bmax[0] = 0.0
     bmax[nb + 1] = 0.0
@@ -125,12 +130,35 @@ def lacking_flips(g: np.ndarray, c: np.ndarray, cx: int, s: LackingScratch) -> i
             m = max(m, abs(g[x]))
         bmax[k + 1] = m
     strong = np.float32(G_STRONG)
+    zeros = 0
+    for k in range(nb):
+        loc = max(bmax[k], max(bmax[k + 1], bmax[k + 2]))
+        thr = strong * loc
+        lit = loc > 0
+        for x in range(8 * k, min(W, 8 * k + 8)):
+            v = g[x]
+            sign = np.int8(v > 0) - np.int8(v < 0)
+            sign = sign if lit & (abs(v) >= thr) else np.int8(0)
+            sg[x] = sign
+            no_g[x] = zeros
+            zeros += sign == 0
+    no_g[W] = zeros
+    # the channel's columns: their signs (NaN and 0: none), and the counts the runs below read in one step each
+    bad = 0
+    changes = 0
+    prev = np.int8(0)
     for x in range(W):
-        k = x // 8 + 1
-        loc = max(bmax[k - 1], max(bmax[k], bmax[k + 1]))
-        v = g[x]
-        sign = np.int8(v > 0) - np.int8(v < 0)
-        sg[x] = sign if (loc > 0) & (abs(v) >= strong * loc) else np.int8(0)
+        no_c[x] = bad
+        c_changes[x] = changes
+        if (x & 1) == cx:
+            v = c[x]
+            sign = np.int8(1) if v > 0 else np.int8(-1)
+            bad += not (v > 0 or v < 0)
+            changes += (prev != 0) & (sign != prev)
+            prev = sign
+            c_sign[x] = sign
+    no_c[W] = bad
+    c_changes[W] = changes
     ne = 0
     for x in range(W - 1):
         if sg[x] * sg[x + 1] < 0:
@@ -144,9 +172,8 @@ def lacking_flips(g: np.ndarray, c: np.ndarray, cx: int, s: LackingScratch) -> i
         x1 = int(np.floor(e1))
         if x1 < x0:
             continue
-        ok = True
-        for x in range(x0, x1 + 1):
-            ok &= sg[x] == sg[x0]
+        # one G sign throughout: no pixel without one (two opposite neighbours would be an edge between e0, e1)
+        ok = no_g[x1 + 1] == no_g[x0]
         # the B columns from one pixel before the first G edge to one after the second (B is constant across a
         # G edge, so those see the run's end stripes)
         s0 = max(int(np.ceil(e0 - 1.0)), 0)
@@ -155,19 +182,7 @@ def lacking_flips(g: np.ndarray, c: np.ndarray, cx: int, s: LackingScratch) -> i
             s0 += 1
         if (s1 & 1) != cx:
             s1 -= 1
-        if not ok or s1 < s0 + 2:
-            continue
-        flips = 0
-        prev = 0
-        for q in range(s0, s1 + 1, 2):
-            sv = c[q]
-            if not (sv > 0 or sv < 0):
-                ok = False
-            sgn = 1 if sv > 0 else -1
-            if prev != 0 and sgn != prev:
-                flips += 1
-            prev = sgn
-        if not ok:
+        if not ok or s1 < s0 + 2 or no_c[s1 + 1] != no_c[s0]:
             continue
         r_e0[nr] = e0
         r_e1[nr] = e1
@@ -175,6 +190,7 @@ def lacking_flips(g: np.ndarray, c: np.ndarray, cx: int, s: LackingScratch) -> i
         r_x1[nr] = x1
         r_s0[nr] = s0
         r_s1[nr] = s1
+        flips = c_changes[s1 + 1] - c_changes[s0 + 1]  # (the changes from s0 to s1)
         r_c[nr] = flips
         ratio[nr] = (e1 - e0) / (flips + 1)
         nr += 1
@@ -191,16 +207,13 @@ def lacking_flips(g: np.ndarray, c: np.ndarray, cx: int, s: LackingScratch) -> i
         if not (MIN_WIDTH <= span / n <= MAX_WIDTH):
             continue
         scale = n / span
-        vote = 0.0
+        # the phase: the B columns' sign against the model's alternation, used where all of them agree (they all
+        # have a sign here, so that is where their weighted vote has that sign and each agrees with it)
+        phase = 0
         for q in range(r_s0[i], r_s1[i] + 1, 2):
-            vote += _alternating(q, e0, scale, n) * c[q]
-        if vote == 0:
-            continue
-        phase = 1 if vote > 0 else -1
-        ok = True
-        for q in range(r_s0[i], r_s1[i] + 1, 2):
-            ok &= phase * _alternating(q, e0, scale, n) * c[q] > 0
-        if not ok:
+            t = _alternating(q, e0, scale, n) * c_sign[q]
+            phase = t if phase == 0 else (phase if t == phase else 2)
+        if phase == 2:
             continue
         for x in range(r_x0[i], r_x1[i] + 1):
             if (x & 1) != cx and not (phase * _alternating(x, e0, scale, n) * c[x] > 0):
