@@ -13,7 +13,6 @@ from app.decode.colour import camera_gamma_of
 from app.decode.depth_range import check_depth_range, copy_columns
 from app.decode.fast import average_frames
 from app.decode.mosaic import NO_LEAKS, mosaic_leaks, to_rgb
-from app.decode.mosaic_signs import lacking_signs
 from app.decode.motion import MotionParams, MotionRepair, check_motion_mode
 from app.decode.stripemap import StripeMap
 from app.decode.twoshot import SEGMENTATIONS, TwoShotDecoder
@@ -99,6 +98,8 @@ class FrameSetDecoder:
         # a raw mosaic's lacking channel is filled consistently with the unmixing the decoder applies
         self.leaks = mosaic_leaks(mixing) if self.mosaic is not None else NO_LEAKS
         self.decoder = self.kind.make_decoder(pattern_meta, proj_w, mixing, column_range, segmentation, gamma)
+        if isinstance(self.decoder, TwoShotDecoder):  # the lacking channel's signs from the G edges, in its row loop
+            self.decoder.mosaic = self.mosaic
         self.shots = self.decoder.shots
 
     def empty_reason(self) -> str:
@@ -132,7 +133,6 @@ class FrameSetDecoder:
         frame's pattern): with both and motion "auto", a two-shot pair decodes its newest frame where the scene moved
         (the stripe map's info "moving" = the share of such pixels)."""
         frames, moving = self.repaired(frames, newest, previous)
-        frames = self.mosaic_signs(frames)
         depth = None
         geometry = self.triangulator.moebius_geometry if self.triangulator is not None else None
         if self.kind.depth_in_decode and geometry is not None:
@@ -149,15 +149,7 @@ class FrameSetDecoder:
         """The stripe map alone of a frame set in pattern order (no checks, no triangulation); newest, previous:
         see stripes_and_depth."""
         frames, moving = self.repaired(list(frames), newest, previous)
-        frames = self.mosaic_signs(frames)
         return _noting_motion(self.kind.stripes(self.decoder, frames), moving)
-
-    def mosaic_signs(self, frames: list[np.ndarray]) -> list[np.ndarray]:
-        """frames with a raw mosaic's two-shot pair given the lacking channel's signs where its columns alias the
-        stripes (app/decode/mosaic_signs.py); as they are for other cameras and schemes."""
-        if self.mosaic is None or not isinstance(self.decoder, TwoShotDecoder) or len(frames) != 2:
-            return frames
-        return list(lacking_signs(frames[0], frames[1], self.mosaic, self.decoder))
 
     def rgb(self, frames: list[np.ndarray] | tuple[np.ndarray, ...]) -> list[np.ndarray]:
         """frames as RGB: raw Bayer frames reconstructed along the stripes (app/decode/mosaic.py), RGB as they are."""

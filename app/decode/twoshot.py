@@ -15,7 +15,9 @@ import numpy as np
 
 from app.decode import fast
 from app.decode.colour import channel_rows, linearisation, unmixing_matrix
+from app.decode.fast.lacking import lacking_channel
 from app.decode.mirror import columns_run_backwards, mirror_back, mirror_image, mirror_range
+from app.decode.mosaic_signs import lacking_signs
 from app.decode.stripemap import StripeMap
 from app.decode.windows import EMPTY_RANGE, LabelParams, WindowSpec, label_settings, window_lookup
 from app.errors import InputError
@@ -96,6 +98,9 @@ class TwoShotDecoder:
         self._luts: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._packed: dict[int, np.ndarray] = {}
         self._bundles: dict[tuple, tuple] = {}
+        # frames reconstructed from this raw Bayer mosaic (app/decode/mosaic.py): the lacking channel's signs come
+        # from the G edges where its columns alias the stripes (fast/lacking.py); None for other frames
+        self.mosaic: str | None = None
 
     def luts(self, dtype: np.dtype) -> tuple[np.ndarray, np.ndarray]:
         levels = 65536 if dtype == np.uint16 else 256
@@ -121,11 +126,13 @@ class TwoShotDecoder:
         StripeCode, LabelSettings), built once per frame depth and parameters (the per-frame call passes them as
         they are)."""
         p = self.params
-        key = (np.dtype(dtype), p, use_range)
+        # (mirrored rigs take the signs in a pass of their own before the mirror: decode)
+        lacking = lacking_channel(self.channels, None if self.mirrored else self.mosaic)
+        key = (np.dtype(dtype), p, use_range, lacking)
         if key not in self._bundles:
             tables = fast.FrameTables(*self.tables(dtype))
             classifier = fast.Classifier(
-                self.unmix, np.float32(p.t_abs), np.float32(p.t_rel), np.float32(p.t_rel_edges), int(p.block)
+                self.unmix, np.float32(p.t_abs), np.float32(p.t_rel), np.float32(p.t_rel_edges), int(p.block), lacking
             )
             settings = label_settings(self.spec, p.label, use_range)
             self._bundles[key] = (tables, classifier, self.spec.stripe_code(), settings)
@@ -168,6 +175,7 @@ class TwoShotDecoder:
     def decode(self, frame1: np.ndarray, frame2: np.ndarray) -> StripeMap:
         """frame1 saw pattern 0 and frame2 pattern 1 (in pattern order, whichever came first in time)."""
         if self.mirrored:
+            frame1, frame2 = self._mirrored_signs(frame1, frame2)
             return mirror_back(self._decode(mirror_image(frame1), mirror_image(frame2))[0])
         return self._decode(frame1, frame2)[0]
 
@@ -179,8 +187,17 @@ class TwoShotDecoder:
         final, while it is in cache; the same depths as Triangulator.depth of the stripe map. None for a rig
         decoded mirrored (the caller triangulates the stripe map)."""
         if self.mirrored:
+            frame1, frame2 = self._mirrored_signs(frame1, frame2)
             return mirror_back(self._decode(mirror_image(frame1), mirror_image(frame2))[0]), None
         return self._decode(frame1, frame2, geometry)
+
+    def _mirrored_signs(self, frame1: np.ndarray, frame2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A rig decoded mirrored: the pair with a raw mosaic's lacking signs from the G edges (mosaic_signs.py, the
+        fused path's specification, on the frames as the camera saw them), as it is without a mosaic."""
+        if self.mosaic is None:
+            return frame1, frame2
+        self._check_pair(frame1, frame2)
+        return lacking_signs(frame1, frame2, self.mosaic, self)
 
     def _decode(
         self, frame1: np.ndarray, frame2: np.ndarray, geometry: MoebiusGeometry | None = None

@@ -21,16 +21,22 @@ class FrameTables(NamedTuple):
     packed: np.ndarray
 
 
+NO_LACKING = (-1, -1, -1)  # Classifier.lacking of frames not reconstructed from a raw mosaic
+
+
 class Classifier(NamedTuple):
     """Two-shot classification: the unmixing rows (m, 3) float32 of the pattern channels, the noise floor t_abs
     (raw 8-bit steps), the shares t_rel (a code) and t_rel_edge (a zero-crossing sign) of the local amplitude
-    (float32), and the pixels per block of that amplitude."""
+    (float32), and the pixels per block of that amplitude. lacking: for frames reconstructed from a raw mosaic,
+    (pattern channel of G, camera channel of the other pattern channel, column parity holding it), whose signs
+    the G edges give where its columns alias the stripes (lacking.py); NO_LACKING for other frames."""
 
     unmix: np.ndarray
     t_abs: np.float32
     t_rel: np.float32
     t_rel_edge: np.float32
     block: int
+    lacking: tuple[int, int, int]
 
 
 class StripeCode(NamedTuple):
@@ -100,17 +106,46 @@ class EventScratch(NamedTuple):
     right: np.ndarray
 
 
+class LackingScratch(NamedTuple):
+    """One row of the lacking channel's signs (lacking.py), W pixels: per block of 8 the max |dG| at 1 + b with
+    zero guards (g_max), the strong G signs (sign) and G's edges (edges); counts before each pixel (W + 1,
+    int32) of the pixels without a strong G sign (no_g), of the channel's columns without a sign (no_c) and of
+    its sign changes from the column two to the left (c_changes), and the channel's signs at its columns
+    (c_sign, int8); per usable run of constant G its edges (e0, e1), first and last pixel (x0, x1), first and
+    last column holding the channel (s0, s1), the sign changes seen there (changes) and its length per seen
+    stripe (ratio); the pixels whose sign flips (flips)."""
+
+    g_max: np.ndarray
+    sign: np.ndarray
+    edges: np.ndarray
+    no_g: np.ndarray
+    no_c: np.ndarray
+    c_changes: np.ndarray
+    c_sign: np.ndarray
+    e0: np.ndarray
+    e1: np.ndarray
+    x0: np.ndarray
+    x1: np.ndarray
+    s0: np.ndarray
+    s1: np.ndarray
+    changes: np.ndarray
+    ratio: np.ndarray
+    flips: np.ndarray
+
+
 class ClassifyScratch(NamedTuple):
     """One row of classification. rows (2m, W) float32: rows 0..m-1 the unmixed differences, rows m..2m-1 the
     noise floors, raised in place to the zero-crossing sign thresholds. block_max (max(m, 2), nb + 2): each
     block's max |d|, at 1 + b with zero guards; block_thr (2, nb + 2) and pixel_thr (2, W): the two-channel
-    path's code thresholds per block and spread over the pixels; code (W,) int8 the row's codes."""
+    path's code thresholds per block and spread over the pixels; code (W,) int8 the row's codes; lacking: the
+    lacking channel's signs (Classifier.lacking)."""
 
     rows: np.ndarray
     block_max: np.ndarray
     block_thr: np.ndarray
     pixel_thr: np.ndarray
     code: np.ndarray
+    lacking: LackingScratch
 
 
 class LabelScratch(NamedTuple):

@@ -15,6 +15,7 @@ from numba import njit
 import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
 from app.decode.fast.bundles import Classifier, ClassifyScratch, FrameTables
 from app.decode.fast.differences import differences
+from app.decode.fast.lacking import lacking_row, lacking_scratch
 from app.decode.simd import spread8x2
 
 
@@ -206,6 +207,7 @@ def classify_scratch(m: int, W: int, block: int) -> ClassifyScratch:
         np.empty((2, nb + 2), np.float32),
         np.empty((2, W), np.float32),
         np.empty(W, np.int8),
+        lacking_scratch(W),
     )
 
 
@@ -222,7 +224,8 @@ def classify_row(
 ) -> None:
     """twoshot_classify for row y of the frames: codes into scratch.code, the unmixed differences into
     scratch.rows[0:m] and, with want_thr, the zero-crossing sign thresholds into scratch.rows[m:2m]. ahead: rows
-    to prefetch meanwhile (see differences).
+    to prefetch meanwhile (see differences). Frames reconstructed from a raw mosaic (classifier.lacking) get the
+    lacking channel's signs from the G edges on the difference rows (lacking.lacking_row).
 
     The same arithmetic in simple loops (differences and noise floors, block maxima, thresholds), each reading
     plain rows and writing one kind of array, so that each is vectorised; the coefficients live in locals
@@ -245,6 +248,7 @@ def classify_row(
     nz0 = rows[2]
     nz1 = rows[3]
     differences(f1, f2, y, tables.lin, tables.dlin, tables.packed, classifier.unmix, ta, rows, ahead)
+    lacking_row(f1, f2, y, tables, classifier, scratch)  # (a raw mosaic's aliased signs; else nothing)
     # block maxima of |d| at bm[1 + b], with zero guards at both ends
     bm0 = scratch.block_max[0]
     bm1 = scratch.block_max[1]
@@ -325,7 +329,8 @@ def classify_row(
 def _classify_row_any(f1, f2, y, tables, classifier, scratch):
     """classify_row for any number of pattern channels (its thresholds are always written)."""
     lin, dlin = tables.lin, tables.dlin
-    unmix, t_abs, t_rel, t_rel_edge, block = classifier
+    unmix, t_abs, t_rel, block = classifier.unmix, classifier.t_abs, classifier.t_rel, classifier.block
+    t_rel_edge = classifier.t_rel_edge
     tmp = scratch.rows
     bmax = scratch.block_max
     code = scratch.code
