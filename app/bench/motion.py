@@ -43,7 +43,29 @@ def motions(scene: str) -> list[tuple[str, dict]]:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--motion-scenes", default=",".join(SCENES), metavar="LIST", help="scenes (motion)")
+    parser.add_argument(
+        "--motion-motions",
+        default="",
+        metavar="LIST",
+        help="motions by their table label, e.g. 'still,x 8 mm,turn 2 deg' (motion; default all)",
+    )
     parser.add_argument("--motion-size", default="640x480", metavar="WxH", help="camera size (motion; default 640x480)")
+
+
+def selected_motions(scene: str, labels: str) -> list[tuple[str, dict]]:
+    """motions(scene) limited to the comma-separated labels (all of them for an empty list); a label that no scene
+    knows is an InputError naming it. A scene's still row always runs first: the targets of cube and colour_panel
+    are shares of it."""
+    from app.errors import InputError
+
+    wanted = [w.strip() for w in labels.split(",") if w.strip()]
+    known = {label for s in SCENES for label, _ in motions(s)}
+    unknown = [w for w in wanted if w not in known]
+    if unknown:
+        raise InputError(f"--motion-motions: unknown motion {unknown[0]!r}; choose from {', '.join(sorted(known))}")
+    if not wanted:
+        return motions(scene)
+    return [(label, o) for label, o in motions(scene) if label == "still" or label in wanted]
 
 
 def score(depth: np.ndarray, truth_depth: np.ndarray, lit: np.ndarray) -> tuple[float, float, float]:
@@ -125,7 +147,7 @@ def run(args: argparse.Namespace) -> list[dict]:
     rows: list[dict] = []
     for scene in scenes:
         still: dict[str, dict] = {}
-        for label, overrides in motions(scene):
+        for label, overrides in selected_motions(scene, getattr(args, "motion_motions", "")):
             for row in measure(scene, size, label, overrides):
                 if label == "still":
                     still[row["mode"]] = row

@@ -53,11 +53,14 @@ class FrameSetDecoder:
         segmentation: str | None = None,
         motion: str = "auto",
         mosaic: str | None = None,
+        motion_params: MotionParams | None = None,
     ) -> None:
         """segmentation: two-shot stripes from code runs (default), zero crossings or both merged
         (TwoShotParams: both covers grazing surfaces a little better at twice the time). motion: "auto" decodes a
         two-shot pair's newest frame alone where the scene moved since the frame before the pair (app/decode/motion.py;
         the decode calls say which frame is newest and pass that previous frame), "off" always decodes the pair.
+        motion_params: with motion "auto", when a pixel counts as moving and how it is thresholded (default
+        MotionParams()).
         mosaic: the Bayer mosaic of raw (H, W) frames, which app/decode/mosaic.py reconstructs to RGB first; RGB
         frames decode as they are."""
         self.mosaic = mosaic_name(mosaic, "mosaic")
@@ -68,7 +71,8 @@ class FrameSetDecoder:
         if segmentation is not None and segmentation not in SEGMENTATIONS:
             raise InputError(f"segmentation {segmentation!r}: choose {', '.join(SEGMENTATIONS)}")
         self.kind = get_scheme(scheme)  # an unknown name is an InputError
-        self.motion = MotionParams() if check_motion_mode(motion, "scheme") == "auto" and self.kind.shots == 2 else None
+        auto = check_motion_mode(motion, "scheme") == "auto" and self.kind.shots == 2
+        self.motion = (motion_params or MotionParams()) if auto else None
         self._repairs: dict[np.dtype, MotionRepair] = {}  # per frame depth
         self.scheme = self.kind.name
         self.calibration = calibration

@@ -39,13 +39,14 @@ def repair_older(
     """Write the repaired older frame into out (the frames' shape and dtype) and return the moving pixels.
 
     frames: (newest, older, previous), (H, W, 3) frames of one dtype; previous saw the newest frame's pattern.
-    tables: (lin, dlin, pairs, inverse, grid): the camera's linearisation and its noise slope (3, levels) float32
-    (app.decode.colour.linearisation); for 8-bit frames the pair table of app.decode.fast.pair_tables (one gather
-    for a change and its noise slopes), else an empty one; linear value -> nearest raw level per channel
-    (app.decode.motion.inverse_table). watched: the camera channels (int64) whose change marks
-    motion (the pattern's). limits: float32 (share of the local contrast, multiple of the noise slopes, floor in
-    linear 8-bit units) a change must exceed, then the share of the wide window's contrast the narrow window must
-    keep to be used, then the share of their sum and the floor within which the two frames' local means must
+    tables: (lin, dlin, pairs, inverse, grid, quantised_lin): the camera's linearisation and its noise slope
+    (3, levels) float32 (app.decode.colour.linearisation); for 8-bit frames the pair table of
+    app.decode.fast.pair_tables (one gather for a change and its noise slopes), else an empty one; linear value ->
+    nearest raw level per channel (app.decode.motion.inverse_table); the linearisation quantised as the local
+    sums' terms (quantised_table). watched: the camera channels (int64) whose change marks motion (the
+    pattern's). limits: float32 (share of the local contrast, multiple of the noise slopes, floor in linear 8-bit
+    units) a change must exceed, then the share of the wide window's contrast the narrow window must keep to be
+    used, then the share of their sum and the floor within which the two frames' local means must
     agree to be used. radii: int64 (narrow, wide) half-widths of the envelope windows along the row, then that of
     the local means; spread: how far along the row a moving pixel's mark reaches."""
     newest, older, previous = frames
@@ -67,7 +68,7 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, 
     """repair_older's loop over the rows, without reference counting (its arrays all belong to the caller). Table
     reads go through `gather` (indices first, into plain rows): the loops around them then vectorise."""
     newest, previous, older = frames
-    lin, dlin, pairs, inverse, grid = tables
+    lin, dlin, pairs, inverse, grid, quantised_lin = tables
     H, W, C = newest.shape
     rel, noise_k, floor, narrow_share = limits[0], limits[1], limits[2], limits[3]
     mean_share = limits[4]
@@ -164,25 +165,25 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, 
             at = index[c, :m]
             for x in range(m):
                 at[x] = older[y, s0 + x, c]
-            older_lin = changed[:m]  # (changed is free until the change test below)
-            gather(older_lin, lin[c], at, m)
+            gather(qo, quantised_lin[c], at, m)  # (the older frame's linear values serve only these sums)
             _quantise(ln[c, s0:g], qn)
-            _quantise(older_lin, qo)
             _running_sums(qn, qo, m, sn, so)
             mn, mo = sums_new[c, a:b], sums_old[c, a:b]
-            _window_sums(sn, s0, a, b, -rm, rm, W, mn)
-            _window_sums(so, s0, a, b, -rm, rm, W, mo)
             # Where the two frames' local means agree (the surface's level unchanged across the window) their sum
             # is the channel's local sum of both levels, balanced whatever the code: it replaces the envelope's
             # hi + lo there. The means over the window's two halves must agree too: a silhouette or an albedo edge
             # that moved inside the window changes one half's level while the whole's may stay within the share.
             if _is_watched(watched, c):
-                _agree_into(mn, mo, mean_share, per_pixel[0, a:b], agree_ab)
-                for k, lo_off, hi_off in ((1, -rm, 0), (2, 0, rm)):
-                    half_new, half_old = changed[a:b], moving[a:b]  # (free until the change test below)
-                    _window_sums(sn, s0, a, b, lo_off, hi_off, W, half_new)
-                    _window_sums(so, s0, a, b, lo_off, hi_off, W, half_old)
-                    _agree_into(half_new, half_old, mean_share, per_pixel[k, a:b], agree_ab)
+                # the halves [x - rm, x] and [x, x + rm], and the window as their sum less pixel x (exact integers)
+                halves = (spans[0, a:b], spans[1, a:b], spans[2, a:b], spans[3, a:b])  # (free until the next channel)
+                _window_sums(sn, s0, a, b, -rm, 0, W, halves[0])
+                _window_sums(so, s0, a, b, -rm, 0, W, halves[1])
+                _window_sums(sn, s0, a, b, 0, rm, W, halves[2])
+                _window_sums(so, s0, a, b, 0, rm, W, halves[3])
+                _agree_halves(halves, qn[a - s0 :], qo[a - s0 :], mean_share, per_pixel[:3, a:b], mn, mo, agree_ab)
+            else:
+                _window_sums(sn, s0, a, b, -rm, rm, W, mn)
+                _window_sums(so, s0, a, b, -rm, rm, W, mo)
         changed_ab, moving_ab = changed[a:b], moving[a:b]
         _fill(changed_ab, 0.0)
         for i in range(watched.shape[0]):
@@ -244,6 +245,17 @@ def _window_constants(W, radius, floor, out):
         out[3, x] = np.float32(1.0) / (scale * np.float32(last - first))
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def quantised_table(lin: np.ndarray) -> np.ndarray:
+    """quantise of every entry of the linearisation (3, levels) float32, as int32: one gather gives a raw value's
+    term of the local sums."""
+    out = np.empty(lin.shape, np.int32)
+    for c in range(lin.shape[0]):
+        for v in range(lin.shape[1]):
+            out[c, v] = quantise(lin[c, v])
+    return out
+
+
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def quantise(value: np.float32) -> np.int32:
     """A linear value in int32 steps of 1 / MEAN_SCALE, rounded (negative values to 0), in float32 arithmetic."""
@@ -291,10 +303,20 @@ def _window_sums(sums, s0, a, b, lo_off, hi_off, W, out):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _agree_into(u, v, share, floor, agree):
-    """agree[x] = 0 where |u[x] - v[x]| > share (u[x] + v[x]) + floor[x] (two frames' local sums disagree)."""
+def _agree_halves(halves, qn, qo, share, floors, mn, mo, agree):
+    """From the two frames' local sums over each half of the window (left new, left old, right new, right old) and
+    their quantised values qn, qo at the window's centre: the sums over the whole window into mn, mo, and agree[x]
+    = 0 where the two frames' sums over the window or either half differ by more than share of their sum plus the
+    floor (floors: window, left half, right half)."""
+    left_n, left_o, right_n, right_o = halves
     for x in range(agree.shape[0]):
-        ok = abs(u[x] - v[x]) <= share * (u[x] + v[x]) + floor[x]
+        u = left_n[x] + right_n[x] - np.float32(qn[x])  # (exact: integers below 2^24)
+        v = left_o[x] + right_o[x] - np.float32(qo[x])
+        mn[x] = u
+        mo[x] = v
+        ok = abs(u - v) <= share * (u + v) + floors[0, x]
+        ok &= abs(left_n[x] - left_o[x]) <= share * (left_n[x] + left_o[x]) + floors[1, x]
+        ok &= abs(right_n[x] - right_o[x]) <= share * (right_n[x] + right_o[x]) + floors[2, x]
         agree[x] = agree[x] if ok else np.float32(0.0)
 
 

@@ -18,7 +18,8 @@ SMALL = {"camera_size": (320, 240), "projector_size": (512, 384)}
 
 def sequence(scene: str, small: bool = True, **overrides):
     """A rig (small, else the bench's 640x480 with its projector), four frames of the alternating patterns 0, 1, 0, 1
-    rendered while it moves, the truth after each frame, and a two-shot FrameSetDecoder per motion mode."""
+    rendered while it moves, the truth after each frame, and a two-shot FrameSetDecoder per motion mode (and
+    "make": a decoder for given MotionParams)."""
     rig = VirtualRig.from_preset(scene, **{**(SMALL if small else {"camera_size": (640, 480)}), **overrides})
     cal = rig.calibration
     cal.extra["camera_gamma"] = float(rig.options.camera_gamma)
@@ -29,6 +30,9 @@ def sequence(scene: str, small: bool = True, **overrides):
         truths.append((rig.ground_truth.depth.copy(), rig.ground_truth.lit.copy()))
     meta = {"scheme": "two-shot", "size": list(ps.size), "images": ps.names, **ps.params}
     decoders = {m: FrameSetDecoder("two-shot", meta, cal, rig.depth_range_mm, motion=m) for m in ("auto", "off")}
+    decoders["make"] = lambda params: FrameSetDecoder(
+        "two-shot", meta, cal, rig.depth_range_mm, motion="auto", motion_params=params
+    )
     return frames, truths, decoders
 
 
@@ -105,8 +109,7 @@ def test_a_turntable_at_2_degrees_a_frame_meets_its_target():
 
 def mean_figures(frames, truths, decoders, params):
     """The sliding pairs' mean (coverage, correct, gross) decoded with motion auto and the given MotionParams."""
-    dec = decoders["auto"]
-    dec.motion, dec._repairs = params, {}
+    dec = decoders["make"](params)
     figures = []
     for pair, newest, previous, (truth_depth, lit) in newest_pairs(frames, truths):
         figures.append(score(dec.stripes_and_depth(pair, newest, previous)[1], truth_depth, lit))
@@ -191,3 +194,13 @@ def test_offline_decode_of_a_moving_dump_gives_the_newest_frames_geometry(tmp_pa
     for (cov, cor, gross), (cov_off, cor_off, gross_off) in zip(figures["auto"], figures["off"], strict=True):
         assert cov >= cov_off + 0.2 and cor >= cor_off + 0.1, figures
         assert gross <= 0.01 and gross_off >= 3 * gross, figures
+
+
+def test_the_bench_selects_motions_by_their_labels():
+    from app.bench.motion import selected_motions
+
+    assert [label for label, _ in selected_motions("face", "x 8 mm,z 2 mm")] == ["still", "x 8 mm", "z 2 mm"]
+    assert [label for label, _ in selected_motions("turntable", "x 8 mm,turn 2 deg")] == ["still", "turn 2 deg"]
+    assert len(selected_motions("cube", "")) == 10
+    with pytest.raises(InputError, match=r"--motion-motions: unknown motion 'x 3 mm'"):
+        selected_motions("face", "x 3 mm")
