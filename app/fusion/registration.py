@@ -9,8 +9,10 @@ with projective correspondences by default (app/fusion/projective.py; Open3D's k
 `association="nearest"`; the fine stage coloured ICP with `colour`, off by default: docs/performance.md, "Whole
 models"); it is accepted when
 enough of its points found the map (fitness), they fit well (inlier RMSE) and the step from the prediction is
-plausible; otherwise it is dropped, the model is left as it was, and the prediction goes on from the last good
-pose.
+plausible. A scan that fails from the prediction is tried again from constant motion over every frame since the
+last accepted scan, then from that scan's pose (the object stopped): a live thread that falls behind, or a run of
+failed scans, leaves the object far from where the prediction stops coasting. When those fail too, the scan is
+dropped, the model is left as it was, and the prediction goes on from the last good pose.
 """
 
 from __future__ import annotations
@@ -200,21 +202,44 @@ class Tracker:
             self.since_ok += 1
             return TrackResult(False, self.prediction(), 0.0, 0.0, f"too few points ({len(pts)})")
         init = self.prediction()
+        res = self._register(pts, nrm, rgb, init)
+        if not res.ok and "singular" not in res.reason:
+            # lost: the object went on while the scans failed (or the thread fell behind it), or stopped
+            for other in self.recovery_starts(init):
+                again = self._register(pts, nrm, rgb, other)
+                if again.ok:
+                    res = again
+                    break
+        if not res.ok:
+            self.since_ok += 1
+            return res
+        self._accept(res.pose, pts, nrm, rgb)
+        return res
+
+    def recovery_starts(self, tried: np.ndarray) -> list[np.ndarray]:
+        """Where a scan that failed from the prediction is tried again: constant motion over every frame since the
+        last accepted scan (the prediction stops coasting after MAX_COAST scans), then no motion since it."""
+        P = self.pose
+        full = P @ np.linalg.matrix_power(self.step, self.frames_since)
+        starts = [full] if not np.allclose(full, tried) else []
+        return [*starts, P] if not np.allclose(P, tried) else starts
+
+    def _register(self, pts: np.ndarray, nrm: np.ndarray, rgb: np.ndarray, init: np.ndarray) -> TrackResult:
+        """The registration from `init` and its failure test (pose = init when it failed)."""
+        st = self.settings
         if self.projective is not None:
             found = self._register_projective(pts, init)
             if isinstance(found, str):
-                self.since_ok += 1
                 return TrackResult(False, init, 0.0, 0.0, found)
             M, fitness, rmse = found
-            return self._test(M, init, fitness, rmse, pts, nrm, rgb)
+            return self._test(M, init, fitness, rmse, pts)
         reg = self.o3d.pipelines.registration
         src = self._cloud(pts, nrm, rgb)
         tgt = self._map_cloud(pts, init)
-        coarse_src = src
         try:  # (Open3D raises when no point of the scan finds the map)
             est = reg.TransformationEstimationPointToPlane(reg.TukeyLoss(k=st.coarse_mm))
             r = reg.registration_icp(
-                coarse_src, tgt, st.coarse_mm, init, est, reg.ICPConvergenceCriteria(max_iteration=st.coarse_iterations)
+                src, tgt, st.coarse_mm, init, est, reg.ICPConvergenceCriteria(max_iteration=st.coarse_iterations)
             )
             fine = reg.ICPConvergenceCriteria(
                 relative_fitness=st.fine_tolerance, relative_rmse=st.fine_tolerance, max_iteration=st.fine_iterations
@@ -226,22 +251,12 @@ class Tracker:
                 est = reg.TransformationEstimationPointToPlane(reg.TukeyLoss(k=st.fine_mm))
                 r = reg.registration_icp(src, tgt, st.fine_mm, r.transformation, est, fine)
         except RuntimeError:
-            self.since_ok += 1
             return TrackResult(False, init, 0.0, 0.0, "no point of the scan near the model")
         M = np.asarray(r.transformation).copy()
-        return self._test(M, init, float(r.fitness), float(r.inlier_rmse), pts, nrm, rgb)
+        return self._test(M, init, float(r.fitness), float(r.inlier_rmse), pts)
 
-    def _test(
-        self,
-        M: np.ndarray,
-        init: np.ndarray,
-        fitness: float,
-        rmse: float,
-        pts: np.ndarray,
-        nrm: np.ndarray,
-        rgb: np.ndarray,
-    ) -> TrackResult:
-        """The failure test of a registration result; accepted, it extends the map."""
+    def _test(self, M: np.ndarray, init: np.ndarray, fitness: float, rmse: float, pts: np.ndarray) -> TrackResult:
+        """The failure test of a registration result."""
         st = self.settings
         D = np.linalg.inv(init) @ M
         # the jump as the scan's centre sees it (a turn about a far axis shifts the camera's origin a lot)
@@ -255,9 +270,7 @@ class Tracker:
         elif rotation_deg(D[:3, :3]) > st.max_step_deg or jump_mm > st.max_step_mm:
             reason = f"a jump from the prediction ({rotation_deg(D[:3, :3]):.1f} deg, {jump_mm:.1f} mm)"
         if reason:
-            self.since_ok += 1
             return TrackResult(False, init, fitness, rmse, reason)
-        self._accept(M, pts, nrm, rgb)
         return TrackResult(True, M, fitness, rmse)
 
     def _accept(self, M: np.ndarray, pts: np.ndarray, nrm: np.ndarray, rgb: np.ndarray) -> None:
@@ -278,14 +291,36 @@ class Tracker:
 
 
 def _root(T: np.ndarray, n: int) -> np.ndarray:
-    """The rigid motion S with S^n = T (same axis, 1/n of the angle and, for small angles, of the shift)."""
+    """The rigid motion S with S^n = T: the same screw (axis, pitch), 1/n of its turn and of its slide along it.
+
+    Dividing the shift by n instead is wrong to second order in the angle: a scan's camera orbits a turntable's axis
+    ~780 mm away, so 5 degrees between two tracked scans would put the prediction ~5 mm off, beyond the coarse stage."""
     if n == 1:
         return T
+    w, u = _log(T)
+    return _exp(w / n, u / n)
+
+
+def _v(w: np.ndarray) -> np.ndarray:
+    """The matrix V(w) of SE(3)'s exponential: t = V(w) u for the twist (w, u)."""
+    th = float(np.linalg.norm(w))
+    K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    if th < 1e-9:
+        return np.eye(3) + 0.5 * K
+    return np.eye(3) + (1.0 - np.cos(th)) / th**2 * K + (th - np.sin(th)) / th**3 * (K @ K)
+
+
+def _log(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     import cv2
 
-    rvec, _ = cv2.Rodrigues(T[:3, :3])
-    R, _ = cv2.Rodrigues(rvec / n)
+    w = cv2.Rodrigues(np.ascontiguousarray(T[:3, :3]))[0][:, 0]
+    return w, np.linalg.solve(_v(w), T[:3, 3])
+
+
+def _exp(w: np.ndarray, u: np.ndarray) -> np.ndarray:
+    import cv2
+
     S = np.eye(4)
-    S[:3, :3] = R
-    S[:3, 3] = T[:3, 3] / n
+    S[:3, :3] = cv2.Rodrigues(np.ascontiguousarray(w, np.float64))[0]
+    S[:3, 3] = _v(w) @ u
     return S
