@@ -24,6 +24,7 @@ import numpy as np
 from app.fusion.open3d_import import open3d
 
 MAX_COAST = 3  # scans the prediction goes on at the last step after the last accepted one
+MAX_WIDEN = 3.0  # the most the jump gates widen for a prediction over many frames (9 and more)
 # The gates below were tuned on the virtual rig's 640x480 camera, a pixel covering 0.355 mm at mid range (780 mm);
 # a coarser camera's depth is noisier in proportion (a scan's inlier RMSE at 320x240: 0.4-0.9 mm, not 0.33-0.42)
 REFERENCE_FOOTPRINT_MM = 0.355
@@ -41,7 +42,7 @@ class TrackSettings:
     step_tolerance: float = 1e-7  # the projective ICP's: the norm of a step's twist (rad and mm) that ends a stage
     min_fitness: float = 0.5  # share of the scan's points with a map point within fine_mm
     max_rmse_mm: float = 0.65  # the scans of the bench scenes fit at 0.50-0.63 mm (docs/performance.md)
-    max_step_deg: float = 8.0  # from the prediction
+    max_step_deg: float = 8.0  # from the prediction one frame on (x sqrt(frames) over more: Tracker._test)
     max_step_mm: float = 15.0
     max_incidence_deg: float = 70.0  # steeper points are not added to the map (their depth is the least sure)
     # correspondences: "projective" (the map drawn into the predicted camera, app/fusion/projective.py) or "nearest"
@@ -261,13 +262,17 @@ class Tracker:
         D = np.linalg.inv(init) @ M
         # the jump as the scan's centre sees it (a turn about a far axis shifts the camera's origin a lot)
         centre = pts.mean(axis=0)
+        # the prediction is less sure the more frames it spans (a change of motion grows with them): the jump it
+        # allows grows as their square root, one frame's as set, up to MAX_WIDEN (a far jump on this nearly
+        # symmetric bust can fit a wrong side as well as the right one)
+        widen = min(float(np.sqrt(max(1, self.frames_since))), MAX_WIDEN)
         jump_mm = float(np.linalg.norm(D[:3, :3] @ centre + D[:3, 3] - centre))
         reason = ""
         if fitness < st.min_fitness:
             reason = f"fitness {fitness:.2f} < {st.min_fitness:g}"
         elif rmse > st.max_rmse_mm:
             reason = f"inlier RMSE {rmse:.2f} mm > {st.max_rmse_mm:g}"
-        elif rotation_deg(D[:3, :3]) > st.max_step_deg or jump_mm > st.max_step_mm:
+        elif rotation_deg(D[:3, :3]) > st.max_step_deg * widen or jump_mm > st.max_step_mm * widen:
             reason = f"a jump from the prediction ({rotation_deg(D[:3, :3]):.1f} deg, {jump_mm:.1f} mm)"
         if reason:
             return TrackResult(False, init, fitness, rmse, reason)

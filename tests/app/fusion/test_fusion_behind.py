@@ -113,3 +113,14 @@ def test_after_scans_in_a_row_fail_tracking_picks_the_turn_up_again(turntable):
     fusion = _fuse(rig, fed)
     assert (fusion.fuser.stats.dropped, fusion.fuser.stats.dropped_in_a_row) == (len(blank), 0), fusion.summary()
     _check_poses(rig, frames, fusion, lost=blank)
+
+
+def test_a_second_scan_long_after_the_first_registers_though_no_motion_is_known_yet():
+    """The fusion thread busy with its first scan (the volume's first blocks) takes the next one 12 frames (degrees)
+    later: the prediction is still no motion, so the jump from it is 12 deg, which the gate allows over 12 frames."""
+    rig = VirtualRig.from_preset("turntable", camera_size=(640, 480), rotation_deg_per_frame=1.0)
+    rig.calibration.extra["camera_gamma"] = float(rig.options.camera_gamma)
+    frames = [2, 14, 18, 23]
+    fusion = _fuse(rig, _scan_results(rig, frames))
+    assert (fusion.fuser.stats.scans, fusion.fuser.stats.dropped) == (4, 0), fusion.summary()
+    _check_poses(rig, frames, fusion)
