@@ -22,6 +22,7 @@ examples:
   slscan replay rec/ --headless --realtime   # at the recorded pace (as the live session saw it)
   slscan replay rec/ --headless --realtime --publish tcp://127.0.0.1:5556   # and stream its scans
   slscan replay tt/ --headless --realtime --fuse   # live fusion at the recorded pace: model.ply in --out
+  slscan replay tt/ --headless --realtime --preload --fuse   # the same, frames from memory (no PNG decoding)
 
 The dump's own tags, calibration and depth range are used (--calibration overrides the calibration).
 """
@@ -35,6 +36,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--headless", action="store_true", help="no window: print the figures, save the last scan")
     p.add_argument("--realtime", action="store_true", help="headless: play at the recorded pace (window: always)")
     p.add_argument("--calibration", metavar="FILE", help="use this calibration instead of the dump's")
+    p.add_argument(
+        "--preload",
+        action="store_true",
+        help="read every frame into memory first: grabs then cost ~0 CPU, as a real camera's (default: read each "
+        "frame from its PNG as it is played)",
+    )
     p.add_argument("--frames", type=positive_int, metavar="N", help="stop after N frames (default: the whole dump)")
     p.add_argument("--out", metavar="DIR", help="headless: folder for the last scan (default live-YYYYmmdd-HHMMSS)")
     p.add_argument("--workers", type=positive_int, default=DECODE_WORKERS, help=WORKERS_HELP)
@@ -46,12 +53,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run, record=None, png_level=0)
 
 
-def replay_session(dump_path: str, calibration: str | None = None, realtime: bool = False):
-    """A Session whose camera is the replay camera over `dump_path` (no projector, no trigger)."""
+def replay_session(dump_path: str, calibration: str | None = None, realtime: bool = False, preload: bool = False):
+    """A Session whose camera is the replay camera over `dump_path` (no projector, no trigger); preload: the
+    camera holds every frame in memory, read before the session starts."""
     from app.session import Session
     from core.calibration import Calibration
     from core.dump import read_dump
-    from drivers.camera.replay import ReplayCamera
+    from drivers.camera.replay import ReplayCamera, preload_frames
 
     dump = read_dump(dump_path)
     cal = Calibration.load(calibration) if calibration else dump.calibration()
@@ -64,8 +72,10 @@ def replay_session(dump_path: str, calibration: str | None = None, realtime: boo
     if bad:
         raise InputError(f"{dump_path}/dump.yaml: frames[{bad[0]}].pattern is outside 0..{n - 1}")
 
+    frames = preload_frames(dump) if preload else None
+
     def make_devices():
-        return ReplayCamera(dump, realtime=realtime), None, None
+        return ReplayCamera(dump, realtime=realtime, frames=frames), None, None
 
     rate = 60.0
     session = Session(
@@ -99,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     if args.headless:
-        session = replay_session(args.dump, args.calibration, realtime=args.realtime)
+        session = replay_session(args.dump, args.calibration, realtime=args.realtime, preload=args.preload)
         if args.frames is None:
             args.frames = 10**12  # the whole dump: the replay camera ends the run
         return run_headless(session, args, label="replay")
@@ -111,4 +121,4 @@ def _run(args: argparse.Namespace) -> int:
         raise DeviceError("no display for the view (DISPLAY is not set): run `slscan replay DUMP --headless` instead")
     from app.view import run_view
 
-    return run_view(replay_session(args.dump, args.calibration, realtime=True), args)
+    return run_view(replay_session(args.dump, args.calibration, realtime=True, preload=args.preload), args)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -29,6 +30,19 @@ def test_plays_every_frame_with_its_tags_then_ends(make_dump, truth):
     with pytest.raises(EndOfDumpError, match=r"replay of .*dump: end of the dump \(6 frames played\)"):
         cam.grab()
     assert issubclass(EndOfDumpError, CameraStoppedError) and issubclass(EndOfDumpError, DeviceError)
+    cam.close()
+
+
+def test_preloaded_frames_are_the_files_and_the_dump_is_not_read_again(make_dump, truth):
+    dump = make_dump()
+    cam = ReplayCamera(dump, preload="true", loop=True)
+    for png in Path(dump).glob("frames/*.png"):
+        png.unlink()  # (played from memory: the files are no longer needed)
+    cam.start()
+    frames = [cam.grab(timeout_s=0.1) for _ in range(12)]
+    assert [f.frame_id for f in frames[:6]] == truth.ids
+    for i, f in enumerate(frames):
+        np.testing.assert_array_equal(f.image, truth.image(i % 6))
     cam.close()
 
 
