@@ -8,7 +8,8 @@ cost. One row per motion mode (--fusion-live-motions; default auto, then off, wh
 fusion gets more of the two cores):
 frames_per_s, maps_per_s = frames in and depth maps out per second; tracked_hz, integrated_per_s = scans the
 fusion thread tracked and integrated per second of the session (wall time); late = scans replaced in its mailbox
-before it took them; failed = scans it tracked that failed registration; track_cpu_hz = its tracking rate per
+before it took them; failed = scans it tracked that failed registration; restarts = the model started over from a
+scan long after its first (app/fusion/fuser.py, RESTART_GAP_FRAMES); track_cpu_hz = its tracking rate per
 second of its own CPU (making the scan included); mean_mm = the mesh's vertices against the true surface;
 max_err_deg = the largest pose error of a tracked scan; load = the 1-minute load average after the run (other
 processes share the cores). Targets (issue 25): 60 frames/s in while tracking at >= 30 Hz and integrating >= 10
@@ -95,6 +96,7 @@ def measure(dump: str, motion: str, voxel_mm: float = VOXEL_MM) -> dict:
         "integrated_per_s": round(s.integrated / elapsed, 1),
         "late": fusion.late,
         "failed": s.dropped,
+        "restarts": s.restarts,
         "track_cpu_hz": round(1.0 / (np.mean(s.track_s) + np.mean(s.scan_s)), 1) if s.track_s else 0.0,
         "mean_mm": float("nan"),
         "max_err_deg": float("nan"),
@@ -152,6 +154,7 @@ COLUMNS = (
     ("integrated_per_s", "integ/s"),
     ("late", "late"),
     ("failed", "FAILED"),
+    ("restarts", "restart"),
     ("track_cpu_hz", "cpuHz"),
     ("mean_mm", "mean mm"),
     ("max_err_deg", "maxdeg"),

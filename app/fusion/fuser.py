@@ -16,6 +16,10 @@ from core.calibration import Calibration
 from core.trajectory import PoseRow
 
 DEFAULT_VOXEL_MM = 0.5
+# with no motion known yet (the model is one scan), a scan this many frames (0.5 s at 60 frames/s) or more after it
+# starts the model over from itself: the object may have turned far beyond the widest jump gate, and on a nearly
+# symmetric object a far side can fit the first scan near its pose (docs/performance.md, "Live fusion at 60 frames/s")
+RESTART_GAP_FRAMES = 30
 REFINE_PASSES = 2  # the second makes the views agree more with each other (docs/performance.md, "Whole models")
 
 
@@ -25,6 +29,7 @@ class FuseStats:
     integrated: int = 0
     dropped: int = 0  # failed registration: not integrated
     dropped_in_a_row: int = 0
+    restarts: int = 0  # the model started over from a scan long after its only one (RESTART_GAP_FRAMES)
     tracking_dropped: int = 0  # failed registration while tracking (before any refinement)
     refine_s: float = 0.0  # CPU time of the refinement and the integration again
     track_s: list[float] = field(default_factory=list)  # thread CPU time per tracked scan
@@ -58,6 +63,7 @@ class Fuser:
             footprint = 0.5 * (depth_range_mm[0] + depth_range_mm[1]) / calibration.camera_matrix[0, 0]
             settings = for_footprint(TrackSettings(), footprint)
         self.tracker = Tracker(settings, self.maker.K, (w, h))
+        self._tracker_args = (settings, self.maker.K, (w, h))
         self.volume = Volume(voxel_mm, self.maker.K, (w, h), far, surface, min_weight)
         self._volume_args = (voxel_mm, self.maker.K, (w, h), far, surface, min_weight)
         self.keep = keep
@@ -73,6 +79,9 @@ class Fuser:
 
     def track(self, scan: Scan) -> TrackResult:
         t0 = time.thread_time()
+        first = self.tracker.frame
+        if self.tracker.accepted == 1 and first is not None and scan.frame_id - first >= RESTART_GAP_FRAMES:
+            self._restart()
         st = self.tracker.settings
         # (the map's colours serve the coloured ICP only: without it the colour is not smoothed and sampled)
         depth = scan.depth if scan.track_depth is None else scan.track_depth
@@ -91,6 +100,14 @@ class Fuser:
             self.stats.tracking_dropped += 1
             self.stats.dropped_in_a_row += 1
         return res
+
+    def _restart(self) -> None:
+        """An empty model, whose frame the next scan defines (the counts go on)."""
+        self.tracker = Tracker(*self._tracker_args)
+        self.volume = Volume(*self._volume_args)
+        self._kept.clear()
+        self.poses.clear()
+        self.stats.restarts += 1
 
     def integrate(self, scan: Scan, pose: np.ndarray) -> None:
         t0 = time.thread_time()

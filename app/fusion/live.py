@@ -153,4 +153,5 @@ class LiveFusion:
         return (
             f"fusion: {s.scans} of {self.offered} scans tracked ({self.late} late), {s.integrated} integrated "
             f"({self.skipped} skipped for a newer scan), {s.dropped} failed registration"
+            + (f"; the model started over {s.restarts}x (a scan long after its first)" if s.restarts else "")
         )

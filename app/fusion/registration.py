@@ -132,6 +132,7 @@ class Tracker:
         self.frame: int | None = None  # the frame id of the last accepted scan
         self.gap = 1  # frames between the last two accepted scans
         self.frames_since = 1  # frames from the last accepted scan to the one being tracked
+        self.accepted = 0  # scans accepted (the first one included)
         self._frame_id: int | None = None  # the frame id of the scan being tracked
 
     def prediction(self) -> np.ndarray:
@@ -287,6 +288,7 @@ class Tracker:
         self.frame = self._frame_id
         self.pose = M
         self.since_ok = 1
+        self.accepted += 1
         ray = pts / np.linalg.norm(pts, axis=1, keepdims=True)
         steep = -np.einsum("ij,ij->i", nrm, ray) < np.cos(np.radians(self.settings.max_incidence_deg))
         keep = ~steep

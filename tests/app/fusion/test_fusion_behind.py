@@ -124,3 +124,16 @@ def test_a_second_scan_long_after_the_first_registers_though_no_motion_is_known_
     fusion = _fuse(rig, _scan_results(rig, frames))
     assert (fusion.fuser.stats.scans, fusion.fuser.stats.dropped) == (4, 0), fusion.summary()
     _check_poses(rig, frames, fusion)
+
+
+def test_a_second_scan_half_a_second_after_the_first_starts_the_model_over_from_itself():
+    """The fusion thread starved of the CPU for 60 frames after its first scan: with no motion known the bust may have
+    turned anywhere (here 60 deg), so the model starts over from that scan, and the scans after it register on the
+    truth in the new model's frame."""
+    rig = VirtualRig.from_preset("turntable", camera_size=(640, 480), rotation_deg_per_frame=1.0)
+    rig.calibration.extra["camera_gamma"] = float(rig.options.camera_gamma)
+    frames = [2, 62, 66, 71, 75]
+    fusion = _fuse(rig, _scan_results(rig, frames))
+    s = fusion.fuser.stats
+    assert (s.scans, s.restarts, s.dropped) == (5, 1, 0), fusion.summary()
+    _check_poses(rig, frames[1:], fusion)
