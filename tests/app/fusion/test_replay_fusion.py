@@ -2,8 +2,9 @@
 
 The dump is a rendered turntable whose timestamps are rewritten to a slow camera, so that the fusion thread (at a
 lower priority than capture and decode) has time for most scans even beside other work: nearly every scan is
-tracked (the rest counted late), none fails, and the model and the trajectory lie on the true ones. Real Open3D;
-the mesh is read back with trimesh.
+tracked (the rest counted late), none fails, and the model and the trajectory lie on the true ones, whether the
+frames are read from their files as they are played or all read first (`--preload`, as `slscan bench --fusion-live`
+plays them). Real Open3D; the mesh is read back with trimesh.
 """
 
 from __future__ import annotations
@@ -37,9 +38,11 @@ def slow_turntable(tmp_path_factory) -> str:
     return str(out)
 
 
-def test_replay_fuses_every_scan_onto_the_true_surface(tmp_path, slow_turntable, capsys):
+@pytest.mark.parametrize("preload", [False, True], ids=["from-files", "preloaded"])
+def test_replay_fuses_every_scan_onto_the_true_surface(tmp_path, slow_turntable, capsys, preload):
     out = tmp_path / "last"
     argv = ["replay", slow_turntable, "--headless", "--realtime", "--fuse", "--voxel-mm", "1", "--out", str(out)]
+    argv += ["--preload"] if preload else []
     assert main(argv) == 0
     text = capsys.readouterr().out
     m = re.search(r"fusion: (\d+) of (\d+) scans tracked \((\d+) late\), (\d+) integrated .* (\d+) failed", text)
