@@ -130,7 +130,7 @@ def lacking_flips(g: np.ndarray, c: np.ndarray, cx: int, s: LackingScratch) -> i
     at = s.flips  # (the G edges' pixels first; the flips overwrite them once the edges are located)
     no_g, no_c, c_changes, c_sign = s.no_g, s.no_c, s.c_changes, s.c_sign
     r_e0, r_e1, r_x0, r_x1, r_s0, r_s1, r_n, ratio = s.e0, s.e1, s.x0, s.x1, s.s0, s.s1, s.changes, s.ratio
-    r_scale, r_vote = s.scale, s.vote
+    r_scale = s.scale
     bmax[0] = 0.0
     bmax[nb + 1] = 0.0
     # whole blocks with loops of a fixed 8 (unrolled and vectorised), the last part-block after them
@@ -147,15 +147,13 @@ def lacking_flips(g: np.ndarray, c: np.ndarray, cx: int, s: LackingScratch) -> i
         bmax[k + 1] = m
     strong = np.float32(G_STRONG)
     for k in range(full):
-        loc = max(bmax[k], max(bmax[k + 1], bmax[k + 2]))
-        thr = strong * loc
-        lit = loc > 0
+        thr = _g_threshold(bmax[k], bmax[k + 1], bmax[k + 2], strong)
         for j in range(8):
-            sg[8 * k + j] = _g_sign(g[8 * k + j], thr, lit)
+            sg[8 * k + j] = _g_sign(g[8 * k + j], thr)
     for k in range(full, nb):
-        loc = max(bmax[k], max(bmax[k + 1], bmax[k + 2]))
+        thr = _g_threshold(bmax[k], bmax[k + 1], bmax[k + 2], strong)
         for x in range(8 * k, W):
-            sg[x] = _g_sign(g[x], strong * loc, loc > 0)
+            sg[x] = _g_sign(g[x], thr)
     zeros = 0
     for x in range(W):
         no_g[x] = zeros
@@ -225,42 +223,31 @@ def lacking_flips(g: np.ndarray, c: np.ndarray, cx: int, s: LackingScratch) -> i
         n = seen + 2 * max(0, int(np.round((span / w - seen) / 2.0)))
         r_n[i] = n
         r_scale[i] = n / span
-    # the phase: the channel's columns' sign against the model's alternation, used where all of them agree
-    # (each has a sign here, so that is where the sum of the agreements is their count, or minus it); most runs
-    # have 2-4 such columns: four steps for all, the rest for the few with more
-    for i in range(nr):
-        r_vote[i] = 0
-    for j in range(4):
-        for i in range(nr):
-            q = r_s0[i] + 2 * j
-            t = _alternating(q, r_e0[i], r_scale[i], r_n[i]) * c_sign[min(q, W - 1)]
-            r_vote[i] += (q <= r_s1[i]) * t
-    for i in range(nr):
-        for q in range(r_s0[i] + 8, r_s1[i] + 1, 2):
-            r_vote[i] += _alternating(q, r_e0[i], r_scale[i], r_n[i]) * c_sign[q]
-    for i in range(nr):
-        width = (r_e1[i] - r_e0[i]) / r_n[i]
-        use = (MIN_WIDTH <= width) & (width <= MAX_WIDTH) & (abs(r_vote[i]) * 2 == r_s1[i] - r_s0[i] + 2)
-        r_vote[i] = use * (1 if r_vote[i] > 0 else -1)  # the phase, 0 for a run not used
-    # per pixel lacking the channel: its run (the last to start at or before it, if it ends at or after it), and
-    # whether the channel's sign there differs from the run's model (no_g, sg are free again)
-    run = no_g
+    # per run, in one loop (its values stay in registers): the phase, the channel's columns' sign against the
+    # model's alternation, used where all of them agree (each has a sign here, so that is where the sum of the
+    # agreements is their count, or minus it); then at the run's pixels lacking the channel (the runs' pixel
+    # ranges are disjoint) whether the channel's sign differs from the model. Most runs have 2-4 of the
+    # channel's columns and 1-2 lacking it: those in fixed steps, the rest in loops the few longer runs enter
+    flip = sg  # (sg is free again)
     for x in range(W):
-        run[x] = -1
+        flip[x] = 0
     for i in range(nr):
-        run[r_x0[i]] = i
-    last = -1
-    for x in range(W):
-        last = max(last, run[x])
-        run[x] = last
-    flip = sg
-    for x in range(1 - cx, W, 2):
-        r = run[x]
-        k = max(r, 0)
-        p = r_vote[k] * _alternating(x, r_e0[k], r_scale[k], r_n[k])
-        v = c[x]
-        agrees = ((p > 0) & (v > 0)) | ((p < 0) & (v < 0))  # (NaN: neither)
-        flip[x] = (r >= 0) & (x <= r_x1[k]) & (p != 0) & (not agrees)
+        e0, scale, n, s0, s1, x1 = r_e0[i], r_scale[i], r_n[i], r_s0[i], r_s1[i], r_x1[i]
+        vote = 0
+        for j in range(4):
+            q = s0 + 2 * j
+            vote += (q <= s1) * (_alternating(q, e0, scale, n) * c_sign[min(q, W - 1)])
+        for q in range(s0 + 8, s1 + 1, 2):
+            vote += _alternating(q, e0, scale, n) * c_sign[q]
+        width = (r_e1[i] - e0) / n
+        use = (MIN_WIDTH <= width) & (width <= MAX_WIDTH) & (abs(vote) * 2 == s1 - s0 + 2)
+        phase = use * (1 if vote > 0 else -1)  # (0 for a run not used)
+        first = r_x0[i] + ((r_x0[i] & 1) == cx)
+        for j in range(2):
+            q = first + 2 * j
+            flip[min(q, W - 1)] |= (q <= x1) & _disagrees(q, c, W, phase, e0, scale, n)
+        for q in range(first + 4, x1 + 1, 2):
+            flip[q] |= _disagrees(q, c, W, phase, e0, scale, n)
     n_flip = 0
     for x in range(1 - cx, W, 2):
         at[n_flip] = x
@@ -269,10 +256,28 @@ def lacking_flips(g: np.ndarray, c: np.ndarray, cx: int, s: LackingScratch) -> i
 
 
 @njit(inline="always")
-def _g_sign(v, thr, lit):
-    """G's sign where |v| reaches thr in a lit block, else 0 (int8)."""
-    sign = np.int8(v > 0) - np.int8(v < 0)
-    return sign if lit & (abs(v) >= thr) else np.int8(0)
+def _disagrees(q, c, W, phase, e0, scale, n):
+    """Whether the channel's sign at column q (read inside the row) differs from a run's model (phase 0: the
+    run is not used, no)."""
+    p = phase * _alternating(q, e0, scale, n)
+    v = c[min(q, W - 1)]
+    agrees = ((p > 0) & (v > 0)) | ((p < 0) & (v < 0))  # (NaN: neither)
+    return (p != 0) & (not agrees)
+
+
+@njit(inline="always")
+def _g_threshold(b0, b1, b2, strong):
+    """The |dG| a G sign needs beside three block maxima: +inf in an unlit block (so no sign there, without a
+    select per pixel)."""
+    loc = max(b0, max(b1, b2))
+    return strong * loc if loc > 0 else np.float32(np.inf)
+
+
+@njit(inline="always")
+def _g_sign(v, thr):
+    """G's sign where |v| reaches thr, else 0 (int8; arithmetic, not a select of int8 values, which LLVM
+    vectorises poorly)."""
+    return (np.int8(v > 0) - np.int8(v < 0)) * np.int8(abs(v) >= thr)
 
 
 @njit(inline="always")
