@@ -226,28 +226,21 @@ def lacking_flips(g: np.ndarray, c: np.ndarray, cx: int, s: LackingScratch) -> i
     # per run, in one loop (its values stay in registers): the phase, the channel's columns' sign against the
     # model's alternation, used where all of them agree (each has a sign here, so that is where the sum of the
     # agreements is their count, or minus it); then at the run's pixels lacking the channel (the runs' pixel
-    # ranges are disjoint) whether the channel's sign differs from the model. Most runs have 2-4 of the
-    # channel's columns and 1-2 lacking it: those in fixed steps, the rest in loops the few longer runs enter
+    # ranges are disjoint) whether the channel's sign differs from the model
     flip = sg  # (sg is free again)
     for x in range(W):
         flip[x] = 0
     for i in range(nr):
         e0, scale, n, s0, s1, x1 = r_e0[i], r_scale[i], r_n[i], r_s0[i], r_s1[i], r_x1[i]
         vote = 0
-        for j in range(4):
-            q = s0 + 2 * j
-            vote += (q <= s1) * (_alternating(q, e0, scale, n) * c_sign[min(q, W - 1)])
-        for q in range(s0 + 8, s1 + 1, 2):
+        for q in range(s0, s1 + 1, 2):
             vote += _alternating(q, e0, scale, n) * c_sign[q]
         width = (r_e1[i] - e0) / n
         use = (MIN_WIDTH <= width) & (width <= MAX_WIDTH) & (abs(vote) * 2 == s1 - s0 + 2)
         phase = use * (1 if vote > 0 else -1)  # (0 for a run not used)
         first = r_x0[i] + ((r_x0[i] & 1) == cx)
-        for j in range(2):
-            q = first + 2 * j
-            flip[min(q, W - 1)] |= (q <= x1) & _disagrees(q, c, W, phase, e0, scale, n)
-        for q in range(first + 4, x1 + 1, 2):
-            flip[q] |= _disagrees(q, c, W, phase, e0, scale, n)
+        for q in range(first, x1 + 1, 2):
+            flip[q] = _disagrees(q, c, W, phase, e0, scale, n)
     n_flip = 0
     for x in range(1 - cx, W, 2):
         at[n_flip] = x
