@@ -113,8 +113,7 @@ class LackingScratch(NamedTuple):
     its sign changes from the column two to the left (c_changes), and the channel's signs at its columns
     (c_sign, int32); per usable run of constant G its edges (e0, e1), first and last pixel (x0, x1), first and
     last column holding the channel (s0, s1), the sign changes seen there (changes, then its stripe count), its
-    length per seen stripe (ratio), stripes per pixel (scale) and phase (vote); the pixels whose sign flips
-    (flips)."""
+    length per seen stripe (ratio) and stripes per pixel (scale); the pixels whose sign flips (flips)."""
 
     g_max: np.ndarray
     sign: np.ndarray
@@ -133,7 +132,6 @@ class LackingScratch(NamedTuple):
     ratio: np.ndarray
     flips: np.ndarray
     scale: np.ndarray
-    vote: np.ndarray
 
 
 class ClassifyScratch(NamedTuple):
