@@ -111,9 +111,9 @@ class LackingScratch(NamedTuple):
     zero guards (g_max), the strong G signs (sign) and G's edges (edges); counts before each pixel (W + 1,
     int32) of the pixels without a strong G sign (no_g), of the channel's columns without a sign (no_c) and of
     its sign changes from the column two to the left (c_changes), and the channel's signs at its columns
-    (c_sign, int8); per usable run of constant G its edges (e0, e1), first and last pixel (x0, x1), first and
-    last column holding the channel (s0, s1), the sign changes seen there (changes) and its length per seen
-    stripe (ratio); the pixels whose sign flips (flips)."""
+    (c_sign, int32); per usable run of constant G its edges (e0, e1), first and last pixel (x0, x1), first and
+    last column holding the channel (s0, s1), the sign changes seen there (changes, then its stripe count), its
+    length per seen stripe (ratio) and stripes per pixel (scale); the pixels whose sign flips (flips)."""
 
     g_max: np.ndarray
     sign: np.ndarray
@@ -131,6 +131,7 @@ class LackingScratch(NamedTuple):
     changes: np.ndarray
     ratio: np.ndarray
     flips: np.ndarray
+    scale: np.ndarray
 
 
 class ClassifyScratch(NamedTuple):

@@ -1,4 +1,5 @@
-"""Write the decoder's golden maps: `python tests/app/decode/golden/make_golden.py`.
+"""Write the decoder's golden maps: `python tests/app/decode/golden/make_golden.py` (with `--missing`: only the
+cases not yet in the file, the stored ones kept as they are).
 
 Each case is a frame set rendered by the virtual rig at 320x240 (the frames are stored, so a change to the
 renderer never moves a golden), its calibration, patterns and decoder settings, and the fast path's column
@@ -30,6 +31,12 @@ CASES: dict[str, tuple[str, str, dict, dict, str | None]] = {
     "plane-width2": ("two-shot", "plane", {}, {"stripe_width": 2}, "runs"),
     "face-oneshot": ("one-shot", "face", {}, {}, None),
     "cube-oneshot": ("one-shot", "cube", {}, {}, None),
+    # raw Bayer mosaics (one channel a frame), reconstructed and given the lacking channel's signs from the G edges
+    "face-rggb": ("two-shot", "face", {"bayer": "RGGB"}, {}, "runs"),
+    "face-rggb-both": ("two-shot", "face", {"bayer": "RGGB"}, {}, "both"),
+    "face-rggb-12bit": ("two-shot", "face", {"bayer": "RGGB", "bit_depth": 12}, {}, "runs"),
+    "colour_panel-rggb": ("two-shot", "colour_panel", {"bayer": "RGGB"}, {}, "runs"),
+    "cube-gbrg": ("two-shot", "cube", {"bayer": "GBRG"}, {}, "runs"),
 }
 
 CAL_FIELDS = (
@@ -53,13 +60,18 @@ def render_case(scheme: str, preset: str, overrides: dict, options: dict) -> tup
     ps = make_patterns(scheme, cal.projector_size, **options)
     meta = {"scheme": scheme, "size": list(ps.size), "images": ps.names, **ps.params}
     frames = [rig.render(im) for im in ps.images]
-    return frames, cal, {"meta": meta, "depth_range_mm": list(rig.depth_range_mm)}
+    settings = {"meta": meta, "depth_range_mm": list(rig.depth_range_mm)}
+    if rig.mosaic is not None:
+        settings["mosaic"] = rig.mosaic
+    return frames, cal, settings
 
 
 def decode_case(scheme: str, frames: list[np.ndarray], cal, settings: dict, segmentation: str | None):
     from app.decode.pipeline import FrameSetDecoder
 
-    dec = FrameSetDecoder(scheme, settings["meta"], cal, tuple(settings["depth_range_mm"]), segmentation)
+    dec = FrameSetDecoder(
+        scheme, settings["meta"], cal, tuple(settings["depth_range_mm"]), segmentation, mosaic=settings.get("mosaic")
+    )
     sm, depth = dec.stripes_and_depth(frames)
     return sm.column, depth
 
@@ -92,14 +104,21 @@ def unpack_bits(planes: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     return np.cumsum(delta, axis=1, dtype=np.uint32).view(np.float32)
 
 
-def main() -> int:
+def main(argv: list[str]) -> int:
     sys.path.insert(0, str(ROOT))
     arrays: dict[str, np.ndarray] = {}
+    if "--missing" in argv:
+        with np.load(OUT) as data:
+            arrays = {k: data[k] for k in data.files}
+    done = {k.split("/")[0] for k in arrays if k.endswith("/settings")}
+    sets = len({k.split("/")[0] for k in arrays if k.endswith("/frame0")})
     rendered: dict[str, tuple] = {}
     for name, (scheme, preset, overrides, options, seg) in CASES.items():
+        if name in done:
+            continue
         source = json.dumps([scheme, preset, overrides, options], sort_keys=True)
         if source not in rendered:
-            rendered[source] = (f"set{len(rendered)}", *render_case(scheme, preset, overrides, options))
+            rendered[source] = (f"set{sets + len(rendered)}", *render_case(scheme, preset, overrides, options))
             key, frames, cal, _ = rendered[source]
             for i, f in enumerate(frames):
                 arrays[f"{key}/frame{i}"] = f
@@ -118,4 +137,4 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(main(sys.argv[1:]))
