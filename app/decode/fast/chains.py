@@ -33,7 +33,7 @@ def chain_ends(nr: int, runs: Runs, period: int, scratch: LabelScratch) -> int:
     if nr < 1:
         return 0
     # no condition and no index of unknown sign in the loops (a conditional load, or numba's negative-index fix
-    # of cont[i - 1], makes the loads gathers: scalar loads on AVX2); the last run continues nothing
+    # of cont[i - 1], makes the vectorised loop's loads masked loads and selects); the last run continues nothing
     lab1 = lab[1:]
     for i in range(nr - 1):
         # int32 throughout, eight to a vector (numba widens int32 arithmetic to int64)

@@ -117,9 +117,9 @@ def confirmed_labels(nr: int, pos: np.ndarray, lab: np.ndarray, k: int, period: 
         per = np.int32(period)
         one = np.int32(1)
         inv = np.float32(1.0) / np.float32(period)
-        # the first and last windows apart, the others read through views from j - 1, j, j + 1: no conditional
-        # load and no index of unknown sign (numba's negative-index fix), which make the loads gathers (scalar
-        # loads on AVX2)
+        # the first and last windows apart, the others read through views from j - 1, j, j + 1: plain vector
+        # loads, no conditional load and no index of unknown sign (numba's negative-index fix), which the
+        # vectorised loop turns into masked loads and selects
         cw[6] = _offset(np.int32(pos[0]), none, np.int32(pos[1]), np.int32(0), per, inv)
         before = pos[0:]
         at = pos[1:]
