@@ -15,6 +15,7 @@ import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
 from app.decode.simd import (
     GATHER_LANES,
     LANES,
+    append_sparse16,
     append_where16,
     append_where16_takes,
     fill8,
@@ -146,6 +147,39 @@ def _append_where_impl(flags, n, out):
             x = 0
             while x + LANES <= n:
                 m = append_where16(flags, x, out, m)
+                x += LANES
+            for i in range(x, n):
+                out[m] = i
+                m += flags[i] != 0
+            return m
+
+        return vector
+
+    def scalar(flags, n, out):
+        m = 0
+        for i in range(n):
+            out[m] = i
+            m += flags[i] != 0
+        return m
+
+    return scalar
+
+
+def append_sparse(flags: np.ndarray, n: int, out: np.ndarray) -> int:
+    """append_where for flags that are mostly zero (a row's chain ends): the same result; on an AVX2 target a
+    block of 16 without a set flag is skipped (simd.append_sparse16)."""
+    raise NotImplementedError("numba only")
+
+
+@overload(append_sparse, jit_options=JIT)
+def _append_sparse_impl(flags, n, out):
+    if append_where16_takes(flags, out):
+
+        def vector(flags, n, out):
+            m = 0
+            x = 0
+            while x + LANES <= n:
+                m = append_sparse16(flags, x, out, m)
                 x += LANES
             for i in range(x, n):
                 out[m] = i

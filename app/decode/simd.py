@@ -450,11 +450,9 @@ def append_where16_takes(flags: types.Type, out: types.Type) -> bool:
     return _c(flags, 1, (types.int8, types.uint8, types.boolean)) and _c(out, 1, (types.int32, types.int64))
 
 
-@intrinsic
-def append_where16(typingctx, flags, x, out, n):
-    """Append to out[n:] the positions x + l (l < 16) where flags[x + l] is nonzero, with
-    compressed vectors (see _append); returns the new n. flags is 1-D C-contiguous int8/uint8/bool, out 1-D
-    C-contiguous int32/int64; the caller keeps x + 16 <= len(flags) and room for 16 more entries in out."""
+def _append_where16_typer(flags, x, out, n, skip_empty: bool):
+    """append_where16's signature and codegen; skip_empty: a block without a set flag (on an AVX2 target without
+    AVX-512) appends nothing, tested on its mask, instead of permuting and storing its two parts."""
     if not (append_where16_takes(flags, out) and isinstance(x, types.Integer) and isinstance(n, types.Integer)):
         return None
     sig = types.int64(flags, x, out, n)
@@ -471,9 +469,36 @@ def append_where16(typingctx, flags, x, out, n):
         # (numba stores a bool as one byte: 0 or 1)
         raw = builder.load(builder.bitcast(builder.gep(f.data, [xa]), v8.as_pointer()), align=1)
         keep = builder.icmp_unsigned("!=", raw, ir.Constant(v8, [0] * LANES))
-        return _append(builder, _positions(builder, xa, ir.IntType(kinds[2].dtype.bitwidth)), keep, o.data, na)
+        pos = _positions(builder, xa, ir.IntType(kinds[2].dtype.bitwidth))
+        if not (skip_empty and compress_by_permute()):
+            return _append(builder, pos, keep, o.data, na)
+        any_kept = builder.icmp_unsigned("!=", builder.bitcast(keep, _I16), ir.Constant(_I16, 0))
+        before = builder.block
+        with builder.if_then(any_kept, likely=False):
+            appended = _append(builder, pos, keep, o.data, na)
+            last = builder.block
+        n_out = builder.phi(_I64)
+        n_out.add_incoming(na, before)
+        n_out.add_incoming(appended, last)
+        return n_out
 
     return sig, codegen
+
+
+@intrinsic
+def append_where16(typingctx, flags, x, out, n):
+    """Append to out[n:] the positions x + l (l < 16) where flags[x + l] is nonzero, with
+    compressed vectors (see _append); returns the new n. flags is 1-D C-contiguous int8/uint8/bool, out 1-D
+    C-contiguous int32/int64; the caller keeps x + 16 <= len(flags) and room for 16 more entries in out."""
+    return _append_where16_typer(flags, x, out, n, False)
+
+
+@intrinsic
+def append_sparse16(typingctx, flags, x, out, n):
+    """append_where16 for flags that are mostly zero (a few set in a row's hundreds): on an AVX2 target without
+    AVX-512 a block of 16 without a set flag is skipped on its mask, a predictable branch where set flags are
+    rare (the permutes and stores of its two parts cost more than the test); elsewhere append_where16."""
+    return _append_where16_typer(flags, x, out, n, True)
 
 
 @intrinsic

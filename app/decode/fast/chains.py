@@ -15,7 +15,7 @@ from numba import njit
 import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
 from app.decode.fast.bundles import LabelScratch, LabelSettings, Runs
 from app.decode.fast.lookup import wrap
-from app.decode.primitives import append_where, gather
+from app.decode.primitives import append_sparse, gather
 
 NO_COPY = -1.0  # copy_shift's answer when no copy wins
 
@@ -23,24 +23,32 @@ NO_COPY = -1.0  # copy_shift's answer when no copy wins
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False, forceinline=True)
 def chain_ends(nr: int, runs: Runs, period: int, scratch: LabelScratch) -> int:
     """The chains among the row's nr labelled runs: chain f covers runs scratch.first_run[f] ..
-    scratch.last_run[f]; returns how many. Marked in vectorised loops, then listed by append_where."""
+    scratch.last_run[f]; returns how many. Marked in vectorised loops, then listed by append_sparse."""
     lab = scratch.label
     link = runs.link
     cont = scratch.linked_next
     starts = scratch.starts
     ends = scratch.ends
     per = np.int32(period)
-    for i in range(nr):
+    if nr < 1:
+        return 0
+    # no condition and no index of unknown sign in the loops (a conditional load, or numba's negative-index fix
+    # of cont[i - 1], makes the vectorised loop's loads masked loads and selects); the last run continues nothing
+    lab1 = lab[1:]
+    for i in range(nr - 1):
         # int32 throughout, eight to a vector (numba widens int32 arithmetic to int64)
         li = lab[i]
-        nxt = lab[i + 1] if i + 1 < nr else np.int32(-1)
-        cont[i] = link[i] & (li >= 0) & (nxt == wrap(np.int32(li + 1), per))
+        cont[i] = link[i] & (li >= 0) & (lab1[i] == wrap(np.int32(li + 1), per))
+    cont[nr - 1] = 0
     for i in range(nr):
-        labelled = lab[i] >= 0
-        starts[i] = labelled & ((i == 0) or (cont[i - 1] == 0))
-        ends[i] = labelled & (cont[i] == 0)
-    n_found = append_where(starts, nr, scratch.first_run)
-    append_where(ends, nr, scratch.last_run)
+        ends[i] = (lab[i] >= 0) & (cont[i] == 0)
+    starts[0] = lab[0] >= 0
+    starts1 = starts[1:]
+    for i in range(nr - 1):
+        starts1[i] = (lab1[i] >= 0) & (cont[i] == 0)
+    # a few chains in a row's hundreds of runs: sparse flags
+    n_found = append_sparse(starts, nr, scratch.first_run)
+    append_sparse(ends, nr, scratch.last_run)
     return n_found
 
 

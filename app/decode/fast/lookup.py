@@ -84,6 +84,20 @@ def _mod(j, per, inv):
     return np.int32(r - per) if r >= per else r
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _offset(p, pp, pn, j, per, inv):
+    """Window j's offset (p - j) mod per where it is confirmed (pp, pn: the positions of windows j - 1 and j + 1,
+    -1 for none), else -1; int32 throughout, eight to a vector (numba widens int32 arithmetic to int64); positions
+    are < per."""
+    one = np.int32(1)
+    after = wrap(np.int32(pp + one), per)
+    nxt = wrap(np.int32(p + one), per)
+    ok = ((pp >= 0) & (p == after)) | ((p >= 0) & (pn == nxt))
+    o = np.int32(p - _mod(j, per, inv))  # in (-period, period)
+    o = np.int32(o + per) if o < 0 else o
+    return o if ok else np.int32(-1)
+
+
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def confirmed_labels(nr: int, pos: np.ndarray, lab: np.ndarray, k: int, period: int, cw: np.ndarray) -> None:
     """lab[i] = the label of run i from the confirmed windows over it (a window confirmed by an adjacent one
@@ -103,17 +117,18 @@ def confirmed_labels(nr: int, pos: np.ndarray, lab: np.ndarray, k: int, period: 
         per = np.int32(period)
         one = np.int32(1)
         inv = np.float32(1.0) / np.float32(period)
-        for j in range(nr):
-            # int32 throughout, eight to a vector (numba widens int32 arithmetic to int64); positions are < period
-            p = np.int32(pos[j])
-            pp = np.int32(pos[j - 1]) if j > 0 else none
-            pn = np.int32(pos[j + 1]) if j + 1 < nr else none
-            after = wrap(np.int32(pp + one), per)
-            nxt = wrap(np.int32(p + one), per)
-            ok = ((pp >= 0) & (p == after)) | ((p >= 0) & (pn == nxt))
-            o = np.int32(p - _mod(np.int32(j), per, inv))  # in (-period, period)
-            o = np.int32(o + per) if o < 0 else o
-            cw[j + 6] = o if ok else none
+        # the first and last windows apart, the others read through views from j - 1, j, j + 1: plain vector
+        # loads, no conditional load and no index of unknown sign (numba's negative-index fix), which the
+        # vectorised loop turns into masked loads and selects
+        cw[6] = _offset(np.int32(pos[0]), none, np.int32(pos[1]), np.int32(0), per, inv)
+        before = pos[0:]
+        at = pos[1:]
+        after = pos[2:]
+        cw7 = cw[7:]
+        for i in range(nr - 2):
+            cw7[i] = _offset(np.int32(at[i]), np.int32(before[i]), np.int32(after[i]), np.int32(i + one), per, inv)
+        j = nr - 1
+        cw[j + 6] = _offset(np.int32(pos[j]), np.int32(pos[j - 1]), none, np.int32(j), per, inv)
         for i in range(nr):
             # the seven windows i - 6 .. i: the greatest offset, and the least as unsigned (-1 is the
             # greatest unsigned value, so unconfirmed windows drop out of the least)

@@ -10,7 +10,7 @@ from synth import make_calibration, plane_depth, render
 from app.decode import fast
 from app.decode.fast import chains, classify, columns, differences, lookup, rows, runs
 from app.decode.fast.bundles import NO_LACKING, ChainMap, Classifier, FrameTables, LabelSettings, Runs, StripeCode
-from app.decode.primitives import append_where, fill_eight, run_bounds
+from app.decode.primitives import append_sparse, append_where, fill_eight, run_bounds
 from app.decode.simd import gather8, spread8x2
 from app.decode.twoshot import TwoShotDecoder, two_shot_spec
 from app.patterns import two_shot_patterns
@@ -309,15 +309,22 @@ def _append_where(flags, n, out):
     return append_where(flags, n, out)
 
 
+@njit(cache=False)
+def _append_sparse(flags, n, out):
+    return append_sparse(flags, n, out)
+
+
+@pytest.mark.parametrize("density", [0.3, 0.01])  # (0.01: mostly blocks of 16 without a flag, which sparse skips)
+@pytest.mark.parametrize("append", [_append_where, _append_sparse])
 @pytest.mark.parametrize("n", [0, 1, 15, 16, 17, 33, 300])
-def test_compressed_positions_equal_flatnonzero(n):
+def test_compressed_positions_equal_flatnonzero(n, append, density):
     rng = np.random.default_rng(n)
-    flags = rng.random(n + 5) < 0.3
+    flags = rng.random(n + 5) < density
     expected = np.flatnonzero(flags[:n]).tolist()
     for f in (flags, flags.astype(np.int8) * 3, np.repeat(flags, 2)[::2]):  # bool, int8, strided (the loop)
         for dtype in (np.int32, np.int64):
             out = np.full(n + 32, -7, dtype)
-            m = _append_where(f, n, out)
+            m = append(f, n, out)
             assert out[:m].tolist() == expected
             assert (out[m + 16 :] == -7).all()  # (whole vectors: at most 16 entries past the last written)
 
