@@ -23,6 +23,8 @@ from core.errors import InputError
 from core.mosaic import mosaic_name
 
 DEFAULT_DEPTH_RANGE_MM = (100.0, 5000.0)
+# raw Bayer frames reconstructed to RGB kept by identity: live, each frame is in two pairs and reconstructed once
+RGB_CACHE_FRAMES = 4
 
 
 class EmptyResultWarning(UserWarning):
@@ -66,7 +68,7 @@ class FrameSetDecoder:
         self.mosaic = mosaic_name(mosaic, "mosaic")
         # the last raw frames and their reconstructions: live, each frame is in two sliding pairs and is the
         # previous frame of a third set, so it is reconstructed once (entries hold the raw array: ids stay unique)
-        self._rgb_cache: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=4)
+        self._rgb_cache: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=RGB_CACHE_FRAMES)
         self._rgb_lock = threading.Lock()
         if segmentation is not None and segmentation not in SEGMENTATIONS:
             raise InputError(f"segmentation {segmentation!r}: choose {', '.join(SEGMENTATIONS)}")
