@@ -100,6 +100,10 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, 
     for y in range(older_flat.shape[0]):
         _copy_into(older_flat[y], out_flat[y])
         m = _row_candidates(frames, tables, watched, limits, flat, scan, rows, lookups, y)
+        if m < 0:  # a dense row: one segment over all its paired candidates
+            a, b = max(xs[0] - pad, 0), min(xs[1] + pad + 1, W)
+            n_moving += _repair_span(frames, tables, watched, limits, radii, spread, rows, lookups, flat, y, a, b)
+            continue
         a, b = -1, -1
         for k in range(m):
             x = xs[k]
@@ -116,11 +120,13 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def _row_candidates(frames, tables, watched, limits, flat, scan, rows, lookups, y):
-    """Row y's paired candidates (pixels whose change against the previous frame passes the test without its share
-    of the local contrast in a watched channel, beside another such pixel), in increasing order into scan's
-    candidate row; returns how many. For 8-bit frames a rough test first, the raw change beyond the channel's
-    quiet distance (a byte compare over the row's raw values): a row where no value passes it has none. Else the
-    test over the whole row in vector loops, as _repair_span's (the same table reads, the same float32 values)."""
+    """Row y's paired candidates (pixels whose change against the previous frame passes the test without its share of
+    the local contrast in a watched channel, beside another such pixel), in increasing order into scan's candidate
+    row; returns how many, or -1 for a row where more than a quarter of the pixels are (only the first and the last
+    then, in the candidate row's first two entries: one segment covers them all). For 8-bit frames a rough test
+    first, the raw change beyond the channel's quiet distance (a byte compare over the row's raw values): a row where
+    no value passes it has none. Else the test over the whole row in vector loops, as _repair_span's (the same table
+    reads, the same float32 values)."""
     newest, previous = frames[0], frames[1]
     lin, dlin, pairs = tables[0], tables[1], tables[2]
     noise_k, floor = limits[1], limits[2]
@@ -170,6 +176,19 @@ def _row_candidates(frames, tables, watched, limits, flat, scan, rows, lookups, 
     else:
         marks[0] = 0
     _mark_paired(candidate[1 : W - 1], candidate[: W - 2], candidate[2:], marks[1 : W - 1])
+    count = 0
+    for x in range(W):
+        count += np.int64(marks[x])
+    if count == 0:
+        return 0
+    if 4 * count > W:  # dense: only the first and the last, in xs[0] and xs[1] (no per-pixel scan), and -1
+        first, last = 0, W - 1
+        while marks[first] == 0:
+            first += 1
+        while marks[last] == 0:
+            last -= 1
+        xs[0], xs[1] = first, last
+        return -1
     m = 0
     for k in range(mark_words.shape[0]):
         if mark_words[k] == 0:
