@@ -21,7 +21,7 @@ import numpy as np
 
 from app.decode.colour import CHANNEL_INDEX
 from app.decode.fast.differences import pair_tables
-from app.decode.fast.motion import MEAN_SCALE, quantised_table, repair_older
+from app.decode.fast.motion import MEAN_SCALE, quantised_table, quiet_distances, repair_older
 from app.errors import InputError
 
 MOTION_MODES = ("auto", "off")
@@ -113,11 +113,12 @@ class MotionRepair:
 
     def __init__(self, luts: tuple[np.ndarray, np.ndarray], channels: str, params: MotionParams) -> None:
         lin, dlin = luts
-        pairs = pair_tables(lin, dlin)  # (empty unless 8-bit)
-        self.tables = (lin, dlin, pairs, *inverse_table(lin), quantised_table(lin))
         self.levels = lin.shape[1]
         self.watched = watched_channels(channels)
         self.limits, self.radii, self.spread = params.limits(), params.radii(), int(params.spread)
+        quiet = quiet_distances(lin, dlin, self.limits)
+        pairs = pair_tables(lin, dlin)  # (empty unless 8-bit)
+        self.tables = (lin, dlin, pairs, *inverse_table(lin), quantised_table(lin), quiet)
 
     def __call__(self, newest: np.ndarray, older: np.ndarray, previous: np.ndarray) -> tuple[np.ndarray, int]:
         """(the older frame repaired where the scene moved, the number of moving pixels); frames (H, W, 3) of one

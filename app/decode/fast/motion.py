@@ -39,37 +39,180 @@ def repair_older(
     """Write the repaired older frame into out (the frames' shape and dtype) and return the moving pixels.
 
     frames: (newest, older, previous), (H, W, 3) frames of one dtype; previous saw the newest frame's pattern.
-    tables: (lin, dlin, pairs, inverse, grid, quantised_lin): the camera's linearisation and its noise slope
-    (3, levels) float32 (app.decode.colour.linearisation); for 8-bit frames the pair table of
-    app.decode.fast.pair_tables (one gather for a change and its noise slopes), else an empty one; linear value ->
-    nearest raw level per channel (app.decode.motion.inverse_table); the linearisation quantised as the local
-    sums' terms (quantised_table). watched: the camera channels (int64) whose change marks motion (the
-    pattern's). limits: float32 (share of the local contrast, multiple of the noise slopes, floor in linear 8-bit
-    units) a change must exceed, then the share of the wide window's contrast the narrow window must keep to be
-    used, then the share of their sum and the floor within which the two frames' local means must
-    agree to be used. radii: int64 (narrow, wide) half-widths of the envelope windows along the row, then that of
-    the local means; spread: how far along the row a moving pixel's mark reaches."""
+    tables: (lin, dlin, pairs, inverse, grid, quantised_lin, quiet): the camera's linearisation and its noise slope (3,
+    levels) float32 (app.decode.colour.linearisation); for 8-bit frames the pair table of app.decode.fast.pair_tables
+    (one gather for a change and its noise slopes), else an empty one; linear value -> nearest raw level per channel
+    (app.decode.motion.inverse_table); the linearisation quantised as the local sums' terms (quantised_table); per
+    channel the raw distance within which no change passes the change test (quiet_distances, int64, -1 where unknown).
+    watched: the camera channels (int64) whose change marks motion (the pattern's). limits: float32 (share of the local
+    contrast, multiple of the noise slopes, floor in linear 8-bit units) a change must exceed, then the share of the
+    wide window's contrast the narrow window must keep to be used, then the share of their sum and the floor within
+    which the two frames' local means must agree to be used. radii: int64 (narrow, wide) half-widths of the envelope
+    windows along the row, then that of the local means; spread: how far along the row a moving pixel's mark reaches."""
     newest, older, previous = frames
     H, W, C = newest.shape
-    rows = np.empty((7 * C + 9, W), np.float32)  # the row loop's scratch rows
-    # table indices and gathered values: C rows of int32, a row of int64 (a pair table's entries); the newest and
-    # the older frame's quantised values along the row and their running sums, int32 (exact: any start gives the
-    # same window sums); per pixel of a row, the local means' floors (window, left half, right half) in sums'
-    # units and the window's reciprocal count (the window clipped at the row's ends)
+    rows = np.empty((7 * C + 9, W), np.float32)  # the segments' scratch rows
+    # table indices and gathered values: C rows of int32, a row of int64 (a pair table's entries); the newest and the
+    # older frame's quantised values along the row and their running sums, int32 (exact: any start gives the same window
+    # sums); per pixel of a row, the local means' floors (window, left half, right half) in sums' units and the window's
+    # reciprocal count (the window clipped at the row's ends)
     per_pixel = np.empty((4, W), np.float32)
     _window_constants(W, radii[2], limits[5], per_pixel)
     lookups = (np.empty((C, W), np.int32), np.empty(W, np.int64), np.empty((4, W + 1), np.int32), per_pixel)
-    flat = (older.reshape(H, W * C), out.reshape(H, W * C))  # (the rows' copy as one vector loop)
-    return _repair_rows((newest, previous, older), tables, watched, limits, radii, spread, rows, lookups, flat, out)
+    # the rough change test per raw value of a row (a byte each, whole words to scan), its threshold per raw value
+    # (the channel's quiet distance; never passed in a channel not watched) and the row's candidates
+    rough = np.zeros(((W * C + 7) // 8) * 8, np.uint8)
+    quiet = tables[6]
+    exact = True  # whether the rough test is the change test itself (no quiet distance known)
+    for i in range(watched.shape[0]):
+        exact &= quiet[watched[i]] < 0
+    beyond = np.empty(W * C, newest.dtype)
+    never = np.iinfo(newest.dtype).max
+    for x in range(W):
+        for c in range(C):
+            beyond[x * C + c] = never
+        for i in range(watched.shape[0]):
+            beyond[x * C + watched[i]] = min(max(quiet[watched[i]], 0), never)
+    marks = np.zeros(((W + 7) // 8) * 8, np.uint8)  # the row's paired candidates, a byte each
+    scan = (rough, rough.view(np.uint64), beyond, np.empty(W, np.int64), exact, marks, marks.view(np.uint64))
+    flat = (older.reshape(H, W * C), out.reshape(H, W * C), newest.reshape(H, W * C), previous.reshape(H, W * C))
+    return _repair_rows(
+        (newest, previous, older, out), tables, watched, limits, radii, spread, rows, lookups, flat, scan
+    )
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
-def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, flat, out):
-    """repair_older's loop over the rows, without reference counting (its arrays all belong to the caller). Table
-    reads go through `gather` (indices first, into plain rows): the loops around them then vectorise."""
-    newest, previous, older = frames
-    lin, dlin, pairs, inverse, grid, quantised_lin = tables
-    H, W, C = newest.shape
+def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, flat, scan):
+    """repair_older's loop over the rows, without reference counting (its arrays all belong to the caller).
+
+    A pixel moves only within spread of a changed pixel whose neighbour along the row changed too, and a changed
+    pixel passes the change test without its share of the local contrast (a candidate): so only pairs of
+    neighbouring candidates start work, over segments of the row around them. Within a segment every result is
+    the whole row's: its windows reach at most radii beyond it into the row (clipped at the row's ends, not the
+    segment's), and its ends lie at least max(spread, 1) from its pairs, so no mark or neighbour test crosses
+    them."""
+    W = frames[0].shape[1]
+    older_flat, out_flat = flat[0], flat[1]
+    xs = scan[3]
+    pad = max(spread, 1)
+    join = 2 * max(radii[0], radii[1], radii[2])  # segments closer than this share one window reach
+    n_moving = 0
+    for y in range(older_flat.shape[0]):
+        _copy_into(older_flat[y], out_flat[y])
+        m = _row_candidates(frames, tables, watched, limits, flat, scan, rows, lookups, y)
+        if m < 0:  # a dense row: one segment over all its paired candidates
+            a, b = max(xs[0] - pad, 0), min(xs[1] + pad + 1, W)
+            n_moving += _repair_span(frames, tables, watched, limits, radii, spread, rows, lookups, flat, y, a, b)
+            continue
+        a, b = -1, -1
+        for k in range(m):
+            x = xs[k]
+            if a >= 0 and x - pad <= b + join:
+                b = min(x + pad + 1, W)
+                continue
+            if a >= 0:
+                n_moving += _repair_span(frames, tables, watched, limits, radii, spread, rows, lookups, flat, y, a, b)
+            a, b = max(x - pad, 0), min(x + pad + 1, W)
+        if a >= 0:
+            n_moving += _repair_span(frames, tables, watched, limits, radii, spread, rows, lookups, flat, y, a, b)
+    return n_moving
+
+
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
+def _row_candidates(frames, tables, watched, limits, flat, scan, rows, lookups, y):
+    """Row y's paired candidates (pixels whose change against the previous frame passes the test without its share of
+    the local contrast in a watched channel, beside another such pixel), in increasing order into scan's candidate
+    row; returns how many, or -1 for a row where more than a quarter of the pixels are (only the first and the last
+    then, in the candidate row's first two entries: one segment covers them all). For 8-bit frames a rough test
+    first, the raw change beyond the channel's quiet distance (a byte compare over the row's raw values): a row where
+    no value passes it has none. Else the test over the whole row in vector loops, as _repair_span's (the same table
+    reads, the same float32 values)."""
+    newest, previous = frames[0], frames[1]
+    lin, dlin, pairs = tables[0], tables[1], tables[2]
+    noise_k, floor = limits[1], limits[2]
+    rough, words, beyond, xs, exact, marks, mark_words = scan
+    W, C = newest.shape[1], newest.shape[2]
+    if not exact:
+        new_row, previous_row = flat[2][y], flat[3][y]
+        for i in range(W * C):  # (a vector loop over the row's bytes)
+            u, v = new_row[i], previous_row[i]
+            d = u - v if u > v else v - u
+            rough[i] = 1 if d > beyond[i] else 0
+        any_rough = 0
+        for k in range(words.shape[0]):
+            any_rough |= words[k]
+        if any_rough == 0:
+            return 0
+    candidate = rows[3 * C + 6]
+    index, entries = lookups[0], lookups[1]
+    entry_halves = entries.view(np.float32)
+    shared_pairs = pairs.shape[0] == PAIR_ENTRIES
+    _fill(candidate, 0.0)
+    for i in range(watched.shape[0]):
+        c = watched[i]
+        change, slope_sum = rows[3 * C + 8 + i], rows[4 * C + 8 + i]  # (kept for the row's segments)
+        if pairs.shape[0] >= PAIR_ENTRIES:  # 8-bit: (lin[n] - lin[p], dlin[n] + dlin[p]) in one gather
+            base = np.int32(0 if shared_pairs else c * PAIR_ENTRIES)
+            at = index[0]
+            for x in range(W):
+                at[x] = base + (np.int32(previous[y, x, c]) << 8) + np.int32(newest[y, x, c])
+            gather(entries, pairs, at, W)
+            for x in range(W):
+                change[x] = abs(entry_halves[2 * x])
+                slope_sum[x] = entry_halves[2 * x + 1]
+        else:
+            table, slope = lin[c], dlin[c]
+            for x in range(W):
+                u, v = newest[y, x, c], previous[y, x, c]
+                change[x] = abs(table[u] - table[v])
+                slope_sum[x] = slope[u] + slope[v]
+        for x in range(W):
+            u = np.float32(1.0) if change[x] > max(noise_k * slope_sum[x], floor) else np.float32(0.0)
+            candidate[x] = u if u > candidate[x] else candidate[x]
+    # paired: a candidate with a candidate beside it (only such a pixel can count as changed)
+    if W > 1:
+        marks[0] = 1 if candidate[0] != 0 and candidate[1] != 0 else 0
+        marks[W - 1] = 1 if candidate[W - 1] != 0 and candidate[W - 2] != 0 else 0
+    else:
+        marks[0] = 0
+    _mark_paired(candidate[1 : W - 1], candidate[: W - 2], candidate[2:], marks[1 : W - 1])
+    count = 0
+    for x in range(W):
+        count += np.int64(marks[x])
+    if count == 0:
+        return 0
+    if 4 * count > W:  # dense: only the first and the last, in xs[0] and xs[1] (no per-pixel scan), and -1
+        first, last = 0, W - 1
+        while marks[first] == 0:
+            first += 1
+        while marks[last] == 0:
+            last -= 1
+        xs[0], xs[1] = first, last
+        return -1
+    m = 0
+    for k in range(mark_words.shape[0]):
+        if mark_words[k] == 0:
+            continue
+        for x in range(8 * k, 8 * k + 8):
+            if marks[x] != 0:
+                xs[m] = x
+                m += 1
+    return m
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _mark_paired(centre, left, right, out):
+    for x in range(out.shape[0]):
+        out[x] = 1 if centre[x] != 0 and (left[x] != 0 or right[x] != 0) else 0
+
+
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
+def _repair_span(frames, tables, watched, limits, radii, spread, rows, lookups, flat, y, a, b):
+    """The repair of row y's pixels [a, b) (a segment around neighbouring candidates); returns its moving pixels.
+    Table reads go through `gather` (indices first, into plain rows): the loops around them then vectorise."""
+    newest, older, out = frames[0], frames[2], frames[3]
+    lin, inverse, grid, quantised_lin = tables[0], tables[3], tables[4], tables[5]
+    W, C = newest.shape[1], newest.shape[2]
     rel, noise_k, floor, narrow_share = limits[0], limits[1], limits[2], limits[3]
     mean_share = limits[4]
     ln = rows[0:C]  # the newest frame's linear values, channel-planar
@@ -85,150 +228,122 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, 
     sums_new = rows[5 * C + 8 : 6 * C + 8]  # the newest frame's local sums (quantised, exact in float32), per channel
     sums_old = rows[6 * C + 8 : 7 * C + 8]  # the older frame's
     agree = rows[7 * C + 8]  # 1 where the two frames' local means agree in every watched channel, else 0
-    index, entries, quantised_rows, per_pixel = lookups
+    index, quantised_rows, per_pixel = lookups[0], lookups[2], lookups[3]
     qn, qo, sn, so = quantised_rows[0], quantised_rows[1], quantised_rows[2], quantised_rows[3]
-    entry_halves = entries.view(np.float32)
-    shared_pairs = pairs.shape[0] == PAIR_ENTRIES  # (one pair table for the three channels)
-    older_flat, out_flat = flat
-    n_moving = 0
-    for y in range(H):
-        _copy_into(older_flat[y], out_flat[y])
-        # the changes first, and the test without its share of the local contrast: a row in which no two pixels
-        # pass it has no moving pixel, and needs no envelope (most rows of a still scene)
-        candidates = 0
-        first_candidate = 0
-        for i in range(watched.shape[0]):
-            c = watched[i]
-            change, slope_sum = changes[i], slopes[i]
-            # (the gathers, then the arithmetic over plain rows, which vectorises)
-            if pairs.shape[0] >= PAIR_ENTRIES:  # 8-bit: (lin[n] - lin[p], dlin[n] + dlin[p]) in one gather
-                base = np.int32(0 if shared_pairs else c * PAIR_ENTRIES)
-                at = index[0]
-                for x in range(W):
-                    at[x] = base + (np.int32(previous[y, x, c]) << 8) + np.int32(newest[y, x, c])
-                gather(entries, pairs, at, W)
-                for x in range(W):
-                    change[x] = abs(entry_halves[2 * x])
-                    slope_sum[x] = entry_halves[2 * x + 1]
-            else:
-                table = lin[c]
-                slope = dlin[c]
-                for x in range(W):
-                    n = newest[y, x, c]
-                    p = previous[y, x, c]
-                    change[x] = abs(table[n] - table[p])
-                    slope_sum[x] = slope[n] + slope[p]
-            for x in range(W):
-                candidates += 1 if change[x] > max(noise_k * slope_sum[x], floor) else 0
-        if candidates < 2:
-            continue
-        # (the span's ends by scans that stop at the first candidate: the counting loop above stays vectorised)
-        while first_candidate < W and not _candidate(
-            changes, slopes, watched.shape[0], first_candidate, noise_k, floor
-        ):
-            first_candidate += 1
-        last_candidate = W - 1
-        while last_candidate > first_candidate and not _candidate(
-            changes, slopes, watched.shape[0], last_candidate, noise_k, floor
-        ):
-            last_candidate -= 1
-        # A changed pixel is a candidate, and a moving one lies within spread of a changed one: the row's work from
-        # here is over the span [a, b) around its candidates, the envelopes over the pixels whose windows reach
-        # into it, [e, f). Within [a, b) every result is the whole row's: the windows are clipped at the same
-        # row ends, and outside it nothing changed (the neighbour test and the spread there see zeros either way).
-        a, b = max(first_candidate - spread, 0), min(last_candidate + spread + 1, W)
-        n = b - a
-        reach = max(radii[0], radii[1])
-        e, f = max(a - reach, 0), min(b + reach, W)
-        rm = radii[2]
-        s0, g = max(a - rm, 0), min(b + rm, W)  # the local sums' reach
-        agree_ab = agree[a:b]
-        _fill(agree_ab, 1.0)
-        e2, f2 = min(e, s0), max(f, g)  # (the pixels of both reaches: one gather)
-        for c in range(C):
-            lnc, hic, loc = ln[c, e:f], hi[c, e:f], lo[c, e:f]
-            at = index[c, e2:f2]
-            for x in range(f2 - e2):
-                at[x] = newest[y, e2 + x, c]
-            gather(ln[c, e2:f2], lin[c], at, f2 - e2)
-            # the narrow window where it holds both levels of the channel (its contrast a share of the wide
-            # window's), else the wide one: a narrow window reaches across fewer albedo and depth edges
-            spans_ef = (spans[0, e:f], spans[1, e:f], spans[2, e:f], spans[3, e:f])
-            _envelopes(lnc, radii[0], radii[1], hic, loc, wide_hi[e:f], wide_lo[e:f], spans_ef)
-            hic, loc, whi, wlo = hi[c, a:b], lo[c, a:b], wide_hi[a:b], wide_lo[a:b]
-            for x in range(n):
-                narrow = hic[x] - loc[x] >= narrow_share * (whi[x] - wlo[x])
-                hic[x] = hic[x] if narrow else whi[x]
-                loc[x] = loc[x] if narrow else wlo[x]
-            # the local sums of the newest and the older frame over the window clipped at the row's ends
-            m = g - s0
-            at = index[c, :m]
-            for x in range(m):
-                at[x] = older[y, s0 + x, c]
-            gather(qo, quantised_lin[c], at, m)  # (the older frame's linear values serve only these sums)
-            _quantise(ln[c, s0:g], qn)
-            _running_sums(qn, qo, m, sn, so)
-            mn, mo = sums_new[c, a:b], sums_old[c, a:b]
-            # Where the two frames' local means agree (the surface's level unchanged across the window) their sum
-            # is the channel's local sum of both levels, balanced whatever the code: it replaces the envelope's
-            # hi + lo there. The means over the window's two halves must agree too: a silhouette or an albedo edge
-            # that moved inside the window changes one half's level while the whole's may stay within the share.
-            if _is_watched(watched, c):
-                # the halves [x - rm, x] and [x, x + rm], and the window as their sum less pixel x (exact integers)
-                halves = (spans[0, a:b], spans[1, a:b], spans[2, a:b], spans[3, a:b])  # (free until the next channel)
-                _window_sums(sn, s0, a, b, -rm, 0, W, halves[0])
-                _window_sums(so, s0, a, b, -rm, 0, W, halves[1])
-                _window_sums(sn, s0, a, b, 0, rm, W, halves[2])
-                _window_sums(so, s0, a, b, 0, rm, W, halves[3])
-                _agree_halves(halves, qn[a - s0 :], qo[a - s0 :], mean_share, per_pixel[:3, a:b], mn, mo, agree_ab)
-            else:
-                _window_sums(sn, s0, a, b, -rm, rm, W, mn)
-                _window_sums(so, s0, a, b, -rm, rm, W, mo)
-        changed_ab, moving_ab = changed[a:b], moving[a:b]
-        _fill(changed_ab, 0.0)
-        for i in range(watched.shape[0]):
-            c = watched[i]
-            change, slope_sum = changes[i, a:b], slopes[i, a:b]
-            hic, loc = hi[c, a:b], lo[c, a:b]
-            for x in range(n):
-                limit = max(rel * (hic[x] - loc[x]), noise_k * slope_sum[x], floor)
-                u = np.float32(1.0) if change[x] > limit else np.float32(0.0)
-                changed_ab[x] = u if u > changed_ab[x] else changed_ab[x]
-        # a change counts where a neighbour along the row changed too: noise is per pixel, a moving edge is not
-        _fill(moving_ab, 0.0)
-        _max_inplace(moving_ab[: n - 1], changed_ab[1:])
-        _max_inplace(moving_ab[1:], changed_ab[: n - 1])
-        _min_inplace(changed_ab, moving_ab)
-        _copy_into(changed_ab, moving_ab)
-        for o in range(1, min(spread, n - 1) + 1):
-            _max_inplace(moving_ab[: n - o], changed_ab[o:])
-            _max_inplace(moving_ab[o:], changed_ab[: n - o])
-        # every pixel's inverse computed and kept where the pixel moves (a select, not a branch: vectorised)
-        last_bin = np.float32(grid[2] - 1)
-        first, per_unit = grid[0], grid[1]
-        for c in range(C):
-            hic, loc, lnc, at = hi[c, a:b], lo[c, a:b], ln[c, a:b], index[c, a:b]
-            mn, mo, reciprocal = sums_new[c, a:b], sums_old[c, a:b], per_pixel[3, a:b]
-            for x in range(n):
-                both = (mn[x] + mo[x]) * reciprocal[x] if agree_ab[x] != 0 else hic[x] + loc[x]
-                at[x] = inverse_bin(both - lnc[x], first, per_unit, last_bin)
-            gather(at, inverse[c], at, n)  # (in place: each lane reads its index before its value is stored)
-        if C == 3:  # the three channels of a pixel in one iteration: whole interleaved stores
-            v0, v1, v2 = index[0, a:b], index[1, a:b], index[2, a:b]
-            row = out[y, a:b]
-            for x in range(n):
-                keep = moving_ab[x] == 0
-                row[x, 0] = row[x, 0] if keep else v0[x]
-                row[x, 1] = row[x, 1] if keep else v1[x]
-                row[x, 2] = row[x, 2] if keep else v2[x]
-        else:
-            for c in range(C):
-                vc = index[c, a:b]
-                for x in range(n):
-                    out[y, a + x, c] = out[y, a + x, c] if moving_ab[x] == 0 else vc[x]
+    n = b - a
+    reach = max(radii[0], radii[1])
+    e, f = max(a - reach, 0), min(b + reach, W)
+    rm = radii[2]
+    s0, g = max(a - rm, 0), min(b + rm, W)  # the local sums' reach
+    agree_ab = agree[a:b]
+    _fill(agree_ab, 1.0)
+    e2, f2 = min(e, s0), max(f, g)  # (the pixels of both reaches: one gather)
+    for c in range(C):
+        lnc, hic, loc = ln[c, e:f], hi[c, e:f], lo[c, e:f]
+        at = index[c, e2:f2]
+        for x in range(f2 - e2):
+            at[x] = newest[y, e2 + x, c]
+        gather(ln[c, e2:f2], lin[c], at, f2 - e2)
+        # the narrow window where it holds both levels of the channel (its contrast a share of the wide
+        # window's), else the wide one: a narrow window reaches across fewer albedo and depth edges
+        spans_ef = (spans[0, e:f], spans[1, e:f], spans[2, e:f], spans[3, e:f])
+        _envelopes(lnc, radii[0], radii[1], hic, loc, wide_hi[e:f], wide_lo[e:f], spans_ef, (e == 0, f == W))
+        hic, loc, whi, wlo = hi[c, a:b], lo[c, a:b], wide_hi[a:b], wide_lo[a:b]
         for x in range(n):
-            n_moving += moving_ab[x] != 0
+            narrow = hic[x] - loc[x] >= narrow_share * (whi[x] - wlo[x])
+            hic[x] = hic[x] if narrow else whi[x]
+            loc[x] = loc[x] if narrow else wlo[x]
+        # the local sums of the newest and the older frame over the window clipped at the row's ends
+        m = g - s0
+        at = index[c, :m]
+        for x in range(m):
+            at[x] = older[y, s0 + x, c]
+        gather(qo, quantised_lin[c], at, m)  # (the older frame's linear values serve only these sums)
+        _quantise(ln[c, s0:g], qn)
+        _running_sums(qn, qo, m, sn, so)
+        mn, mo = sums_new[c, a:b], sums_old[c, a:b]
+        # Where the two frames' local means agree (the surface's level unchanged across the window) their sum
+        # is the channel's local sum of both levels, balanced whatever the code: it replaces the envelope's
+        # hi + lo there. The means over the window's two halves must agree too: a silhouette or an albedo edge
+        # that moved inside the window changes one half's level while the whole's may stay within the share.
+        if _is_watched(watched, c):
+            # the halves [x - rm, x] and [x, x + rm], and the window as their sum less pixel x (exact integers)
+            halves = (spans[0, a:b], spans[1, a:b], spans[2, a:b], spans[3, a:b])  # (free until the next channel)
+            _window_sums(sn, s0, a, b, -rm, 0, W, halves[0])
+            _window_sums(so, s0, a, b, -rm, 0, W, halves[1])
+            _window_sums(sn, s0, a, b, 0, rm, W, halves[2])
+            _window_sums(so, s0, a, b, 0, rm, W, halves[3])
+            _agree_halves(halves, qn[a - s0 :], qo[a - s0 :], mean_share, per_pixel[:3, a:b], mn, mo, agree_ab)
+        else:
+            _window_sums(sn, s0, a, b, -rm, rm, W, mn)
+            _window_sums(so, s0, a, b, -rm, rm, W, mo)
+    changed_ab, moving_ab = changed[a:b], moving[a:b]
+    _fill(changed_ab, 0.0)
+    for i in range(watched.shape[0]):  # (the changes and their noise slopes: _row_candidates's, over the row)
+        c = watched[i]
+        change, slope_sum = changes[i, a:b], slopes[i, a:b]
+        hic, loc = hi[c, a:b], lo[c, a:b]
+        for x in range(n):
+            limit = max(rel * (hic[x] - loc[x]), noise_k * slope_sum[x], floor)
+            u = np.float32(1.0) if change[x] > limit else np.float32(0.0)
+            changed_ab[x] = u if u > changed_ab[x] else changed_ab[x]
+    # a change counts where a neighbour along the row changed too: noise is per pixel, a moving edge is not
+    _fill(moving_ab, 0.0)
+    _max_inplace(moving_ab[: n - 1], changed_ab[1:])
+    _max_inplace(moving_ab[1:], changed_ab[: n - 1])
+    _min_inplace(changed_ab, moving_ab)
+    _copy_into(changed_ab, moving_ab)
+    for o in range(1, min(spread, n - 1) + 1):
+        _max_inplace(moving_ab[: n - o], changed_ab[o:])
+        _max_inplace(moving_ab[o:], changed_ab[: n - o])
+    # every pixel's inverse computed and kept where the pixel moves (a select, not a branch: vectorised)
+    last_bin = np.float32(grid[2] - 1)
+    first, per_unit = grid[0], grid[1]
+    for c in range(C):
+        hic, loc, lnc, at = hi[c, a:b], lo[c, a:b], ln[c, a:b], index[c, a:b]
+        mn, mo, reciprocal = sums_new[c, a:b], sums_old[c, a:b], per_pixel[3, a:b]
+        for x in range(n):
+            both = (mn[x] + mo[x]) * reciprocal[x] if agree_ab[x] != 0 else hic[x] + loc[x]
+            at[x] = inverse_bin(both - lnc[x], first, per_unit, last_bin)
+        gather(at, inverse[c], at, n)  # (in place: each lane reads its index before its value is stored)
+    n_moving = 0
+    if C == 3:  # the three channels of a pixel in one iteration: whole interleaved stores
+        v0, v1, v2 = index[0, a:b], index[1, a:b], index[2, a:b]
+        row = out[y, a:b]
+        for x in range(n):
+            keep = moving_ab[x] == 0
+            row[x, 0] = row[x, 0] if keep else v0[x]
+            row[x, 1] = row[x, 1] if keep else v1[x]
+            row[x, 2] = row[x, 2] if keep else v2[x]
+    else:
+        for c in range(C):
+            vc = index[c, a:b]
+            for x in range(n):
+                out[y, a + x, c] = out[y, a + x, c] if moving_ab[x] == 0 else vc[x]
+    for x in range(n):
+        n_moving += moving_ab[x] != 0
     return n_moving
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def quiet_distances(lin: np.ndarray, dlin: np.ndarray, limits: np.ndarray) -> np.ndarray:
+    """Per channel of the linearisation (3, levels) float32 and its noise slopes: the largest raw distance d such
+    that no pair of raw values at most d apart passes the change test without its share of the local contrast
+    (limits as repair_older's), so a rough integer compare rules them out; levels if no pair passes. -1 (none
+    known) for tables of more than 256 levels (the search is over all pairs)."""
+    C, levels = lin.shape
+    out = np.full(C, -1, np.int64)
+    if levels > 256:
+        return out
+    noise_k, floor = limits[1], limits[2]
+    for c in range(C):
+        best = levels
+        for p in range(levels):
+            for n in range(levels):
+                if abs(lin[c, n] - lin[c, p]) > max(noise_k * (dlin[c, n] + dlin[c, p]), floor):
+                    best = min(best, abs(n - p) - 1)
+        out[c] = best
+    return out
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -329,21 +444,13 @@ def _is_watched(watched, c):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _candidate(changes, slopes, n_watched, x, noise_k, floor):
-    """Whether pixel x passes the change test without its share of the local contrast in a watched channel."""
-    for i in range(n_watched):
-        if changes[i, x] > max(noise_k * slopes[i, x], floor):
-            return True
-    return False
-
-
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _envelopes(row, r1, r2, hi1, lo1, hi2, lo2, spans):
+def _envelopes(row, r1, r2, hi1, lo1, hi2, lo2, spans, ends):
     """hi1[x] = max(row[x - r1 : x + r1 + 1]) and lo1[x] = the min, the window clipped at the row's ends, and the
     same over r2 into hi2, lo2. Inside the row from spans doubled to the largest power of two p in each
     window (a sparse table: two reads per pixel), one table for both windows: the wider's spans go on from the
     narrower's. spans: four float32 scratch rows of the row's length, each pass from one pair of rows into the
-    other; the pixels whose window the row's ends cut short are done directly."""
+    other; the pixels whose window the row's ends cut short are done directly. ends: whether row starts and ends
+    at the whole row's ends (elsewhere the pixels within a window of them are not used, and left undone)."""
     W = row.shape[0]
     p1 = _span_of(r1)
     p2 = _span_of(r2)
@@ -370,9 +477,10 @@ def _envelopes(row, r1, r2, hi1, lo1, hi2, lo2, spans):
                 else:
                     _window_from(b_hi, b_lo, radius, p, hi, lo)
     for radius, hi, lo in ((r1, hi1, lo1), (r2, hi2, lo2)):
-        ends = (range(0, min(radius, W)), range(max(W - radius, min(radius, W)), W))
-        for end in ends:  # the pixels whose window the row's ends cut short
-            _window_direct(row, radius, hi, lo, end)
+        if ends[0]:  # the pixels whose window the row's ends cut short
+            _window_direct(row, radius, hi, lo, range(0, min(radius, W)))
+        if ends[1]:
+            _window_direct(row, radius, hi, lo, range(max(W - radius, min(radius, W)), W))
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")

@@ -65,6 +65,25 @@ def test_the_compiled_repair_is_its_numpy_statement(bit_depth, scene, motion, mo
     np.testing.assert_array_equal(fast, ref)
 
 
+@pytest.mark.parametrize("bit_depth", [8, 16])
+def test_separate_moving_regions_of_one_row_repair_as_the_numpy_statement(bit_depth):
+    """Two patches of a still scene moved along the row, far apart in the same rows (two segments of a row), and a
+    band moved over the whole width (a dense row): the compiled repair is its numpy statement there."""
+    frames, _, decoders = sequence("face", bit_depth=bit_depth)
+    newest = frames[3].copy()
+    for x0 in (90, 230):  # (lit, farther apart than the segments' join, each wider than a window)
+        newest[60:90, x0 : x0 + 30] = np.roll(frames[3][60:90, x0 : x0 + 30], 4, axis=1)
+    newest[150:160] = np.roll(frames[3][150:160], 6, axis=1)
+    luts = decoders["auto"].decoder.luts(frames[0].dtype)
+    fast, n_fast = MotionRepair(luts, "GB", MotionParams())(newest, frames[2], frames[1])
+    ref, n_ref = repair_reference(newest, frames[2], frames[1], luts, "GB", MotionParams())
+    assert n_fast == n_ref
+    moved = np.any(fast != frames[2], axis=2)
+    assert moved[60:90, 90:120].any() and moved[60:90, 230:260].any() and not moved[60:90, 140:220].any()
+    assert moved[150:160].mean() > 0.3
+    np.testing.assert_array_equal(fast, ref)
+
+
 @pytest.mark.parametrize("scene", ["face", "colour_panel", "cube"])
 def test_a_still_scene_decodes_bit_for_bit_as_the_pair(scene):
     frames, truths, decoders = sequence(scene)
