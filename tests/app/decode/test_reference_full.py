@@ -54,7 +54,9 @@ def _compare(fast: np.ndarray, ref: np.ndarray) -> None:
     np.testing.assert_allclose(fast[vf], ref[vr], rtol=0, atol=1e-3)
 
 
-TWO_SHOT = [n for n, case in CASES.items() if case[0] == "two-shot"]
+# The reference specifies the decoder on full-colour frames; the raw Bayer cases (their reconstruction and the
+# lacking channel's signs) are pinned by the golden maps and tested against the rig's truth in test_mosaic.py.
+TWO_SHOT = [n for n, case in CASES.items() if case[0] == "two-shot" and "bayer" not in case[2]]
 ONE_SHOT = [n for n, case in CASES.items() if case[0] == "one-shot"]
 
 
