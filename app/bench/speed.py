@@ -20,6 +20,7 @@ size and target (at most MAX_RAW_FACTOR).
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import os
 import subprocess
@@ -129,24 +130,19 @@ def _raw_row(dec_args: tuple, frames: list, repeats: int, ccd_row: dict) -> dict
     raw = [sample_mosaic(f, "RGGB") for f in frames]
     pool = [[f.copy() for f in raw] for _ in range(RGB_CACHE_FRAMES + 1)]
     dec.decode(raw)  # compile / warm caches
-    turn = iter(range(1 << 62))
-
-    def decode_only():
-        return dec.stripes_and_depth(pool[next(turn) % len(pool)])[1]
-
-    med = _median_ms(decode_only, repeats)
-    a, b = raw[0], raw[-1]
-    base = _median_ms(lambda: b.astype(np.int16) - a.astype(np.int16), repeats)
-    row = {
-        **ccd_row,
-        "camera": "rggb-raw",
-        "median_ms": round(med, 3),
-        "numpy_pass_ms": round(base, 3),
-        "ratio": round(med / base, 2),
-        "x_3ccd": round(med / ccd_row["median_ms"], 2),
-    }
+    pairs = itertools.cycle(pool)
+    row = _timed_row(lambda: dec.stripes_and_depth(next(pairs))[1], raw, repeats, {**ccd_row, "camera": "rggb-raw"})
+    row["x_3ccd"] = round(row["median_ms"] / ccd_row["median_ms"], 2)
     row["within_target"] = within_target(row)
     return row
+
+
+def _timed_row(decode_only, frames: list, repeats: int, row: dict) -> dict:
+    """row with the decode's median, the numpy pass over the same frames and their ratio."""
+    med = _median_ms(decode_only, repeats)
+    a, b = frames[0], frames[-1]
+    base = _median_ms(lambda: b.astype(np.int16) - a.astype(np.int16), repeats)
+    return {**row, "median_ms": round(med, 3), "numpy_pass_ms": round(base, 3), "ratio": round(med / base, 2)}
 
 
 def measure(
@@ -174,21 +170,8 @@ def measure(
             dec = FrameSetDecoder(scheme, meta, cal, rig.depth_range_mm)
             dec.decode(frames)  # compile / warm caches
 
-            def decode_only(dec=dec, frames=frames):
-                return dec.stripes_and_depth(frames)[1]
-
-            med = _median_ms(decode_only, repeats)
-            a, b = frames[0], frames[-1]
-            base = _median_ms(lambda a=a, b=b: b.astype(np.int16) - a.astype(np.int16), repeats)
-            row = {
-                "scheme": scheme,
-                "resolution": f"{w}x{h}",
-                "target": target,
-                "camera": "3ccd",
-                "median_ms": round(med, 3),
-                "numpy_pass_ms": round(base, 3),
-                "ratio": round(med / base, 2),
-            }
+            base_row = {"scheme": scheme, "resolution": f"{w}x{h}", "target": target, "camera": "3ccd"}
+            row = _timed_row(lambda dec=dec, frames=frames: dec.stripes_and_depth(frames)[1], frames, repeats, base_row)
             row["within_target"] = within_target(row)
             rows.append(row)
             if scheme == "two-shot" and "rggb-raw" in cameras:
