@@ -170,6 +170,9 @@ def run_headless(session: Session, args: argparse.Namespace, label: str = "live"
     fig = pipe.figures()
     print_figures(fig)
     if getattr(args, "publisher", None) is not None:
+        # every result has been offered (the pipeline has joined): close sends what is queued and the end message,
+        # so that the summary counts every scan (before, the last one could still be on its way)
+        args.publisher.close()
         print(args.publisher.summary())
     if recorder is not None:
         print(recorder.summary())
