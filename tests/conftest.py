@@ -137,8 +137,9 @@ def slscan_process() -> Iterator[Callable[..., subprocess.Popen]]:
 #   fixtures are built as in a serial run). The files of one SAME_WORKER group run one after the other in one
 #   worker, and so do tests marked `@pytest.mark.xdist_group("name")`, whatever their files. The slowest files
 #   start first (SLOW_FIRST), so that no long file starts last while the other worker has nothing left to do.
-# - numba's kernels. The two-shot decoder's cold compile (about a minute of one core) is done once, before the
-#   workers start (pytest_xdist_setupnodes), into NUMBA_CACHE_DIR. Each worker then caches into a folder of its own,
+# - numba's kernels. The two-shot decoder's cold compiles (uint8 and uint16 frames, a minute or two of each core)
+#   are done once, before the workers start (pytest_xdist_setupnodes, WARM_UPS), into NUMBA_CACHE_DIR. Each worker
+#   then caches into a folder of its own,
 #   <NUMBA_CACHE_DIR>/xdist-<worker>, seeded with a copy of those kernels; the slscan processes its tests start
 #   inherit it. numba writes a function's cache index and its compiled code as two files, so two processes that
 #   compile different signatures of one function at once can leave an index entry naming the other's code
@@ -157,6 +158,7 @@ SLOW_FIRST = (
     "tests/calibration/test_cli.py",
     "tests/app/decode/test_reference_full.py",
     "tests/app/decode/test_golden.py",
+    "tests/app/decode/test_motion.py",
     "tests/reliability/test_crash_recording.py",
     "tests/app/decode/test_cli_decode.py",
     "tests/app/test_cli_patterns.py",
@@ -178,41 +180,67 @@ SAME_WORKER = {
 }
 
 
-# What the warm-up compiles: the live two-shot decoder at uint8, as the sim_session/rig_session fixtures build it,
-# which is also what `slscan live/dump/decode` and the golden two-shot cases run (with the virtual rig's kernels).
-WARM_UP = """
+# What the warm-up compiles, one process per entry, at once (each into a folder of its own, merged afterwards): the
+# live two-shot decoder at uint8, as the sim_session/rig_session fixtures build it, which is also what `slscan
+# live/dump/decode` and the golden two-shot cases run (with the virtual rig's kernels); and the same at uint16 (the
+# 16-bit golden, reference and motion-repair cases, the warm-up's own test), which would otherwise compile in each
+# worker that meets one.
+WARM_UPS = {
+    "uint8": """
 from app.session import build_session
 build_session(None, sim_overrides={"camera_size": [320, 240]}).processor()
-"""
+""",
+    "uint16": """
+from app.session import build_session
+build_session(None, sim_overrides={"camera_size": [320, 240], "bit_depth": 16}).processor()
+""",
+}
 
 
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_setupnodes(config: pytest.Config, specs) -> None:
     """Before the workers start: compile the two-shot decoder once into NUMBA_CACHE_DIR (each worker copies it).
 
-    On an empty cache that takes about a minute of one core; paid here, no test's time includes it, and the
+    On an empty cache that takes one to two minutes of each core; paid here, no test's time includes it, and the
     workers do not both compile it. On a warm cache it is a few seconds of loading.
     """
+    from core.jit_cache import merge_cache_folder
+
     tr = config.pluginmanager.get_plugin("terminalreporter")
     base = cache_base()
     t0 = time.monotonic()
-    run = subprocess.run(
-        [sys.executable, "-c", WARM_UP],
-        cwd=config.rootpath,
-        env={**os.environ, "NUMBA_CACHE_DIR": str(base)},
-        capture_output=True,
-        text=True,
-        timeout=900,
-    )
-    took = time.monotonic() - t0
-    if run.returncode != 0:  # the tests that decode will fail and say why; the run goes on
-        tail = run.stderr.strip().splitlines()[-1:] or ["no output"]
-        message = f"numba warm-up failed after {took:.1f} s (exit {run.returncode}): {tail[0]}"
-    else:
-        compiled = "compiled" if "compiling" in run.stderr else "loaded"
-        message = f"numba warm-up: the two-shot decoder {compiled} into {base} in {took:.1f} s"
+    runs = {}
+    for name, script in WARM_UPS.items():
+        folder = base / f"warm-up-{name}"
+        if folder.exists():  # (a previous run's: merged already, and would be merged again)
+            shutil.rmtree(folder)
+        runs[name] = subprocess.Popen(
+            [sys.executable, "-c", script],
+            cwd=config.rootpath,
+            env={**os.environ, "NUMBA_CACHE_DIR": str(folder)},
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+    said = []
+    for name, run in runs.items():
+        try:
+            err = run.communicate(timeout=900)[1]
+        except subprocess.TimeoutExpired:
+            run.kill()
+            err = run.communicate()[1] + "\ntimed out after 900 s"
+        folder = base / f"warm-up-{name}"
+        if run.returncode != 0:  # the tests that decode will fail and say why; the run goes on
+            tail = err.strip().splitlines()[-1:] or ["no output"]
+            said.append(f"{name} failed (exit {run.returncode}): {tail[0]}")
+        else:
+            said.append(f"{name} {'compiled' if 'compiling' in err else 'loaded'}")
+        if folder.exists():
+            merge_cache_folder(folder, base)
+            shutil.rmtree(folder)
     if tr is not None:
-        tr.write_line(message)
+        took = time.monotonic() - t0
+        tr.write_line(f"numba warm-up: the two-shot decoder {', '.join(said)} into {base} in {took:.1f} s")
 
 
 def _numba_cache_per_worker() -> None:
