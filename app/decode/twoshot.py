@@ -206,6 +206,10 @@ class TwoShotDecoder:
         label() of the events or the runs, and for "both" label(runs) merged into label(events) by merge_maps;
         with geometry, the depth map too (see decode_depth)."""
         self._check_pair(frame1, frame2)
+        # the kernels take C-contiguous frames: a view (a crop, cv2's BGR flipped by frame[..., ::-1]) is copied, a
+        # fraction of a millisecond, rather than compiled for its layout (a minute, once) into the scalar loops
+        frame1 = np.ascontiguousarray(frame1)
+        frame2 = np.ascontiguousarray(frame2)
         H, W = frame1.shape[:2]
         if geometry is None:
             planes, w0, w_span = NO_PLANES, 0.0, 0.0

@@ -79,7 +79,8 @@ def test_pair_table_entries_are_the_differences_and_noise_sums_of_value_pairs():
 
 
 def test_frames_that_are_views_decode_as_their_copies():
-    """Non-contiguous frames (the scalar loop's specialisation) give the contiguous frames' (gathers') result."""
+    """Non-contiguous frames (a crop of wider ones) give the contiguous frames' result (the decoder copies them:
+    the kernels are compiled for C-contiguous frames only)."""
     cal = make_calibration()
     ps = two_shot_patterns(cal.projector_size)
     z, ray = plane_depth(cal, 800.0, slope_x=0.3)
