@@ -7,6 +7,8 @@ data-dependent indices go through `gather` into plain rows, so that the loops af
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from numba import njit, types
 from numba.extending import overload
@@ -138,61 +140,43 @@ def append_where(flags: np.ndarray, n: int, out: np.ndarray) -> int:
     raise NotImplementedError("numba only")
 
 
-@overload(append_where, jit_options=JIT)
-def _append_where_impl(flags, n, out):
-    if append_where16_takes(flags, out):
-
-        def vector(flags, n, out):
-            m = 0
-            x = 0
-            while x + LANES <= n:
-                m = append_where16(flags, x, out, m)
-                x += LANES
-            for i in range(x, n):
-                out[m] = i
-                m += flags[i] != 0
-            return m
-
-        return vector
-
-    def scalar(flags, n, out):
-        m = 0
-        for i in range(n):
-            out[m] = i
-            m += flags[i] != 0
-        return m
-
-    return scalar
-
-
 def append_sparse(flags: np.ndarray, n: int, out: np.ndarray) -> int:
     """append_where for flags that are mostly zero (a row's chain ends): the same result; on an AVX2 target a
     block of 16 without a set flag is skipped (simd.append_sparse16)."""
     raise NotImplementedError("numba only")
 
 
-@overload(append_sparse, jit_options=JIT)
-def _append_sparse_impl(flags, n, out):
-    if append_where16_takes(flags, out):
+def _appends_by(block: Callable) -> Callable:
+    """The overload of an append over blocks of LANES flags, `block(flags, x, out, m) -> m` (simd.append_where16 or
+    append_sparse16), where it takes the arrays; the loop that finishes the row, or does it all, otherwise."""
 
-        def vector(flags, n, out):
+    def impl(flags, n, out):
+        if append_where16_takes(flags, out):
+
+            def vector(flags, n, out):
+                m = 0
+                x = 0
+                while x + LANES <= n:
+                    m = block(flags, x, out, m)
+                    x += LANES
+                for i in range(x, n):
+                    out[m] = i
+                    m += flags[i] != 0
+                return m
+
+            return vector
+
+        def scalar(flags, n, out):
             m = 0
-            x = 0
-            while x + LANES <= n:
-                m = append_sparse16(flags, x, out, m)
-                x += LANES
-            for i in range(x, n):
+            for i in range(n):
                 out[m] = i
                 m += flags[i] != 0
             return m
 
-        return vector
+        return scalar
 
-    def scalar(flags, n, out):
-        m = 0
-        for i in range(n):
-            out[m] = i
-            m += flags[i] != 0
-        return m
+    return impl
 
-    return scalar
+
+overload(append_where, jit_options=JIT)(_appends_by(append_where16))
+overload(append_sparse, jit_options=JIT)(_appends_by(append_sparse16))
