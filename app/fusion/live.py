@@ -2,8 +2,9 @@
 
 The decode workers hand their results to `offer` (a one-slot mailbox: a scan still waiting when a newer one comes
 is replaced and counted `late`); the fusion thread tracks every scan it takes, and integrates an accepted one when
-no newer scan is already waiting or when INTEGRATE_EVERY_S has passed since the last integration (else `skipped`):
-tracking keeps up first, and integration still gets its share when tracking alone takes all the time there is.
+no newer scan is already waiting or when one is due, INTEGRATE_EVERY_S apart (app/fusion/integration_schedule.py;
+else `skipped`): tracking keeps up first, and integration still gets its share when tracking alone takes all the
+time there is.
 
 The thread first warms fusion up (app/fusion/warm_up.py: Open3D and the tracking kernels loaded before the first
 real scan); a headless session waits for that before capture starts (`wait_ready`), the operator window does not
@@ -24,12 +25,13 @@ from typing import Any
 from app.decode.mosaic import to_rgb
 from app.fusion.colour import scan_colour
 from app.fusion.fuser import Fuser
+from app.fusion.integration_schedule import IntegrationSchedule
 from app.fusion.warm_up import warm_up
 from app.recorder import lower_thread_priority
 from core.calibration import Calibration
 
 FUSION_NICENESS = 10  # the capture loop and the decode workers come first
-INTEGRATE_EVERY_S = 0.08  # at least ~10 integrations a second (each ~12 ms of CPU) even when scans queue up
+INTEGRATE_EVERY_S = 0.08  # 12.5 integrations a second (each ~12 ms of CPU) when scans queue up: >= 10 with margin
 
 
 class LiveFusion:
@@ -76,7 +78,7 @@ class LiveFusion:
             return
         finally:
             self._ready.set()
-        last_integration = float("-inf")
+        schedule = IntegrationSchedule(INTEGRATE_EVERY_S)
         while True:
             with self._cond:
                 while self._slot is None and not self._stop:
@@ -92,11 +94,11 @@ class LiveFusion:
                     if tracked.ok:
                         with self._cond:
                             newer = self._slot is not None
-                        if newer and time.monotonic() - last_integration < INTEGRATE_EVERY_S:
+                        if not schedule.wants(time.monotonic(), newer):
                             self.skipped += 1
                         else:
                             self.fuser.integrate(scan, tracked.pose)
-                            last_integration = time.monotonic()
+                            schedule.integrated(time.monotonic())
             except Exception as exc:  # reported with the session's figures; capture goes on regardless
                 self.error = f"{type(exc).__name__}: {exc}"
                 return
