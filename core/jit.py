@@ -28,7 +28,6 @@ Two more guards, both before anything compiles:
 
 from __future__ import annotations
 
-import hashlib
 import os
 import shutil
 import time
@@ -36,12 +35,11 @@ from importlib import metadata
 from pathlib import Path
 
 from core.errors import SlscanError
-from core.jit_cache import cache_base
+from core.jit_cache import cache_base, source_digest
 
 NUMBA_FLOOR = (0, 62)
 LLVMLITE_FLOOR = (0, 45)
 LLVM_FLOOR = 20
-PACKAGES = ("app", "core", "drivers", "calibration")  # the application's top-level packages, beside this one's
 STALE_CACHE_S = 7 * 24 * 3600
 
 WIDE_VECTORS = "-prefer-256-bit"  # appended to the host's features where it has AVX-512
@@ -110,18 +108,6 @@ def _installed_compiler() -> tuple[str, str, int]:
     import llvmlite.binding as llvm
 
     return metadata.version("numba"), metadata.version("llvmlite"), int(llvm.llvm_version_info[0])
-
-
-def source_digest(root: Path | None = None) -> str:
-    """sha256 (first 16 hex digits) over the path and text of every .py file under PACKAGES that mentions numba."""
-    root = root or Path(__file__).resolve().parent.parent
-    h = hashlib.sha256()
-    for pkg in PACKAGES:
-        for path in sorted((root / pkg).rglob("*.py")):
-            text = path.read_bytes()
-            if b"numba" in text:
-                h.update(path.relative_to(root).as_posix().encode() + b"\0" + text + b"\0")
-    return h.hexdigest()[:16]
 
 
 def use_source_keyed_cache() -> Path:

@@ -3,8 +3,11 @@ set-up, which must know the folder without importing core.jit (that would fix nu
 
 from __future__ import annotations
 
+import hashlib
 import os
 from pathlib import Path
+
+PACKAGES = ("app", "core", "drivers", "calibration")  # the application's top-level packages, beside this one's
 
 
 def cache_base() -> Path:
@@ -14,6 +17,18 @@ def cache_base() -> Path:
         return Path(env)
     xdg = os.environ.get("XDG_CACHE_HOME")
     return (Path(xdg) if xdg else Path.home() / ".cache") / "slscan" / "numba"
+
+
+def source_digest(root: Path | None = None) -> str:
+    """sha256 (first 16 hex digits) over the path and text of every .py file under PACKAGES that mentions numba."""
+    root = root or Path(__file__).resolve().parent.parent
+    h = hashlib.sha256()
+    for pkg in PACKAGES:
+        for path in sorted((root / pkg).rglob("*.py")):
+            text = path.read_bytes()
+            if b"numba" in text:
+                h.update(path.relative_to(root).as_posix().encode() + b"\0" + text + b"\0")
+    return h.hexdigest()[:16]
 
 
 def merge_cache_folder(src: Path, dst: Path) -> int:

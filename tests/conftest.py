@@ -204,16 +204,19 @@ def pytest_xdist_setupnodes(config: pytest.Config, specs) -> None:
     On an empty cache that takes one to two minutes of each core; paid here, no test's time includes it, and the
     workers do not both compile it. On a warm cache it is a few seconds of loading.
     """
-    from core.jit_cache import merge_cache_folder
+    from core.jit_cache import merge_cache_folder, source_digest
 
     tr = config.pluginmanager.get_plugin("terminalreporter")
     base = cache_base()
+    keyed = f"slscan-{source_digest()}"  # the folder core.jit compiles into for these sources
     t0 = time.monotonic()
     runs = {}
     for name, script in WARM_UPS.items():
         folder = base / f"warm-up-{name}"
         if folder.exists():  # (a previous run's: merged already, and would be merged again)
             shutil.rmtree(folder)
+        if (base / keyed).exists():  # a warm cache: each warm-up loads what is there rather than compile it again
+            merge_cache_folder(base / keyed, folder / keyed)
         runs[name] = subprocess.Popen(
             [sys.executable, "-c", script],
             cwd=config.rootpath,
