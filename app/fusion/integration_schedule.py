@@ -4,7 +4,8 @@ times `period` apart, so that integration keeps its rate while tracking takes ev
 Due times on a grid, not `period` after the last integration: an integration waits for the next tracked scan, a
 fraction of a tracking step past its due time, and counting the period from there would lose that fraction every
 time (at 0.08 s and ~25 ms a step, 9.7 integrations a second instead of 12.5). One period late or more, the grid
-starts again from now: no burst of integrations to catch up.
+starts again from now: no burst of integrations to catch up; and so it does after an integration made before its
+due time (no newer scan waited), which would otherwise push the grid a period further each time.
 """
 
 from __future__ import annotations
@@ -21,7 +22,5 @@ class IntegrationSchedule:
 
     def integrated(self, now: float) -> None:
         """An integration was done at `now`."""
-        if self._due is None or now - self._due >= self.period_s:
-            self._due = now + self.period_s
-        else:
-            self._due = max(self._due, now - self.period_s) + self.period_s
+        on_grid = self._due is not None and 0.0 <= now - self._due < self.period_s
+        self._due = self._due + self.period_s if on_grid else now + self.period_s

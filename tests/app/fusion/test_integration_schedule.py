@@ -44,3 +44,12 @@ def test_a_long_stall_restarts_the_grid_from_now():
     schedule.integrated(1.0)
     schedule.integrated(5.0)  # 4 s later (a stall): the next is due a period on, not at once
     assert not schedule.wants(5.01, newer_waiting=True) and schedule.wants(5.08, newer_waiting=True)
+
+
+def test_integrations_before_their_due_time_do_not_push_the_grid_ahead():
+    # scans arriving slowly (none waiting) are each integrated; the first queued scan a period after the last one
+    # is integrated again
+    schedule = IntegrationSchedule(0.08)
+    for k in range(21):
+        schedule.integrated(1.0 + 0.01 * k)
+    assert not schedule.wants(1.25, newer_waiting=True) and schedule.wants(1.28, newer_waiting=True)
