@@ -39,7 +39,9 @@ def merge_cache_folder(src: Path, dst: Path) -> int:
 
     numba keeps per function an index `<name>.nbi` (its version, then (source stamp, {signature key: data file}))
     and one `<name>.<n>.nbc` per signature. An index of another numba version or source stamp in dst is replaced
-    by src's; signatures dst has already are kept."""
+    by src's; signatures dst has already are kept. Reading an index unpickles numba types, which creates numba's
+    CPU target: in a process that compiles, call this only after core.jit is imported (it sets the target's
+    features first)."""
     import pickle
     import shutil
 

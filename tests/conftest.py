@@ -210,14 +210,14 @@ def pytest_xdist_setupnodes(config: pytest.Config, specs) -> None:
     base = cache_base()
     keyed = f"slscan-{source_digest()}"  # the folder core.jit compiles into for these sources
     t0 = time.monotonic()
-    runs = {}
+    runs = []
     for name, script in WARM_UPS.items():
         folder = base / f"warm-up-{name}"
         if folder.exists():  # (a previous run's: merged already, and would be merged again)
             shutil.rmtree(folder)
         if (base / keyed).exists():  # a warm cache: each warm-up loads what is there rather than compile it again
             merge_cache_folder(base / keyed, folder / keyed)
-        runs[name] = subprocess.Popen(
+        run = subprocess.Popen(
             [sys.executable, "-c", script],
             cwd=config.rootpath,
             env={**os.environ, "NUMBA_CACHE_DIR": str(folder)},
@@ -225,14 +225,14 @@ def pytest_xdist_setupnodes(config: pytest.Config, specs) -> None:
             stderr=subprocess.PIPE,
             text=True,
         )
+        runs.append((name, folder, run))
     said = []
-    for name, run in runs.items():
+    for name, folder, run in runs:
         try:
             err = run.communicate(timeout=900)[1]
         except subprocess.TimeoutExpired:
             run.kill()
             err = run.communicate()[1] + "\ntimed out after 900 s"
-        folder = base / f"warm-up-{name}"
         if run.returncode != 0:  # the tests that decode will fail and say why; the run goes on
             tail = err.strip().splitlines()[-1:] or ["no output"]
             said.append(f"{name} failed (exit {run.returncode}): {tail[0]}")
@@ -248,7 +248,9 @@ def pytest_xdist_setupnodes(config: pytest.Config, specs) -> None:
 
 def _numba_cache_per_worker() -> None:
     """In an xdist worker: NUMBA_CACHE_DIR (core.jit's cache base) becomes <base>/xdist-<worker>, seeded with the
-    kernels the warm-up compiled into <base>. A function's kernels are copied only where the worker has none."""
+    kernels the warm-up compiled into <base>. A function's kernels are copied only where the worker has none: files
+    copied whole, no index read (core.jit_cache.merge_cache_folder unpickles the indexes' signature keys, which
+    creates numba's CPU target, before core.jit has set its vector width)."""
     worker = os.environ.get("PYTEST_XDIST_WORKER")
     if not worker:
         return
