@@ -16,6 +16,7 @@ import numpy as np
 from app.decode import fast
 from app.decode.colour import channel_rows, linearisation, unmixing_matrix
 from app.decode.fast.lacking import lacking_channel
+from app.decode.fast.lacking_edges import NO_LACKING_EDGES
 from app.decode.mirror import columns_run_backwards, mirror_back, mirror_image, mirror_range
 from app.decode.mosaic_signs import lacking_signs
 from app.decode.stripemap import StripeMap
@@ -101,6 +102,9 @@ class TwoShotDecoder:
         # frames reconstructed from this raw Bayer mosaic (app/decode/mosaic.py): the lacking channel's signs come
         # from the G edges where its columns alias the stripes (fast/lacking.py); None for other frames
         self.mosaic: str | None = None
+        # the pairs given already carry the lacking channel's signs (mosaic_signs.lacking_signs, a pass of its own),
+        # so the row loop takes none; its edges are still placed from the G edges (fast/lacking_edges.py)
+        self.signs_taken = False
 
     def luts(self, dtype: np.dtype) -> tuple[np.ndarray, np.ndarray]:
         levels = 65536 if dtype == np.uint16 else 256
@@ -127,14 +131,17 @@ class TwoShotDecoder:
         they are)."""
         p = self.params
         # (mirrored rigs take the signs in a pass of their own before the mirror: decode)
-        lacking = lacking_channel(self.channels, None if self.mirrored else self.mosaic)
-        key = (np.dtype(dtype), p, use_range, lacking)
+        lacking = lacking_channel(self.channels, None if self.mirrored or self.signs_taken else self.mosaic)
+        # (the lacking channel's edges from the G edges, mirrored or not: lacking_edges.py needs no column parity)
+        ig = lacking_channel(self.channels, self.mosaic)[0]
+        lacking_bit = 1 << (1 - ig) if ig >= 0 else NO_LACKING_EDGES
+        key = (np.dtype(dtype), p, use_range, lacking, lacking_bit)
         if key not in self._bundles:
             tables = fast.FrameTables(*self.tables(dtype))
             classifier = fast.Classifier(
                 self.unmix, np.float32(p.t_abs), np.float32(p.t_rel), np.float32(p.t_rel_edges), int(p.block), lacking
             )
-            settings = label_settings(self.spec, p.label, use_range)
+            settings = label_settings(self.spec, p.label, use_range, lacking_bit)
             self._bundles[key] = (tables, classifier, self.spec.stripe_code(), settings)
         return self._bundles[key]
 
@@ -194,7 +201,7 @@ class TwoShotDecoder:
     def _mirrored_signs(self, frame1: np.ndarray, frame2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """A rig decoded mirrored: the pair with a raw mosaic's lacking signs from the G edges (mosaic_signs.py, the
         fused path's specification, on the frames as the camera saw them), as it is without a mosaic."""
-        if self.mosaic is None:
+        if self.mosaic is None or self.signs_taken:
             return frame1, frame2
         self._check_pair(frame1, frame2)
         return lacking_signs(frame1, frame2, self.mosaic, self)

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.decode import fast
+from app.decode.fast.lacking_edges import NO_LACKING_EDGES
 from app.decode.stripemap import StripeMap
 from core.patterns import check_window_keys, window_table
 
@@ -56,10 +57,16 @@ class LabelParams:
     min_frac: float = 0.7  # share of a chain's pixels inside the depth range for its copy to be chosen
     smooth: int = 2  # sub-pixel nodes: local line fit over +-smooth neighbouring nodes (0 = raw)
     events: bool = False  # two-shot: stripes from per-channel zero crossings instead of pixel runs
+    # two-shot from a raw mosaic: the edges of the channel it samples in every other column placed from the G
+    # edges where that channel aliases the stripes (fast/lacking_edges.py)
+    mosaic_edges: bool = True
 
 
-def label_settings(spec: WindowSpec, params: LabelParams, use_range: bool) -> fast.LabelSettings:
-    """The labelling parameters the compiled decoders read."""
+def label_settings(
+    spec: WindowSpec, params: LabelParams, use_range: bool, lacking_bit: int = NO_LACKING_EDGES
+) -> fast.LabelSettings:
+    """The labelling parameters the compiled decoders read; lacking_bit: the code bit of the channel a raw mosaic
+    samples in every other column, whose edges come from the G edges (fast/lacking_edges.py)."""
     return fast.LabelSettings(
         int(spec.k),
         int(spec.period),
@@ -73,6 +80,7 @@ def label_settings(spec: WindowSpec, params: LabelParams, use_range: bool) -> fa
         float(params.min_support),
         bool(params.edges),
         bool(use_range),
+        int(lacking_bit) if params.mosaic_edges else NO_LACKING_EDGES,
     )
 
 

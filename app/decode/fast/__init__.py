@@ -3,9 +3,11 @@
 bundles      the named tuples the stages take
 differences  two-shot frame differences and the tables they read (pack_tables, pair_tables)
 classify     per-pixel codes (twoshot_classify, oneshot_classify, classify_row)
+lacking      a raw mosaic's lacking channel: its signs from the G edges
 runs         runs of a row and the links between them (pixel_runs, event_runs)
 lookup       window lookup and confirmed labels
 chains       chains, their nodes and the copy vote
+lacking_edges  a raw mosaic's lacking channel: its edges from the G edges
 columns      the column write (and the vertical votes counted with it)
 check        the vertical check and the merge of two maps (vertical_check)
 rows         the row loop (label_rows, twoshot_rows)

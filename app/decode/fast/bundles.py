@@ -52,7 +52,9 @@ class LabelSettings(NamedTuple):
     """Labelling: window length k, sequence period, stripe width (projector px), copies of the sequence across
     the projector and its width, the pixel gap allowed between linked runs, the copy vote's share, the node
     smoothing half-width, the vertical check's tolerance and support (tol <= 0: no check), nodes at edges (else
-    centres), and whether the per-pixel column range is read."""
+    centres), whether the per-pixel column range is read, and for frames reconstructed from a raw mosaic the
+    code bit of the channel it samples in every other column (its edges placed from the G edges:
+    lacking_edges.py; 0: none)."""
 
     k: int
     period: int
@@ -66,6 +68,7 @@ class LabelSettings(NamedTuple):
     min_support: float
     edges_mode: bool
     use_range: bool
+    lacking_bit: int
 
 
 class Geometry(NamedTuple):

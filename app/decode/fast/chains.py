@@ -14,6 +14,7 @@ from numba import njit
 
 import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
 from app.decode.fast.bundles import LabelScratch, LabelSettings, Runs
+from app.decode.fast.lacking_edges import lacking_edges
 from app.decode.fast.lookup import wrap
 from app.decode.primitives import append_sparse, gather
 
@@ -69,7 +70,8 @@ def increasing(x: np.ndarray, n: int) -> None:
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False, forceinline=True)
 def chain_nodes(i0: int, i1: int, runs: Runs, settings: LabelSettings, scratch: LabelScratch) -> int:
     """The nodes of the chain of runs i0..i1 into scratch.nodes_x (pixel) and nodes_v (projector column, before
-    the copy's shift): stripe edges (edges_mode) or centres, made increasing and smoothed; returns how many.
+    the copy's shift): stripe edges (edges_mode) or centres, made increasing and smoothed; returns how many. A raw
+    mosaic's lacking channel has its edges placed from the G edges first (lacking_edges.py).
 
     The chain's runs are read through views from i0 (an index i0 + q of unknown sign gets numba's negative-index
     fix per element, which turns the loads into gathers); the values are small multiples of 0.5, so the float
@@ -98,6 +100,9 @@ def chain_nodes(i0: int, i1: int, runs: Runs, settings: LabelSettings, scratch: 
     if nn < 2:
         return nn  # no segment to interpolate on (only with a window of k < 3 in the edges mode)
     increasing(nx, nn)
+    if settings.lacking_bit != 0 and settings.edges_mode:  # (frames reconstructed from a raw mosaic)
+        lacking_edges(nx, nn, runs.code[i0:], settings.lacking_bit, sw)
+        increasing(nx, nn)
     smooth = settings.smooth
     if smooth > 0 and nn > 2 * smooth:
         _smooth_nodes(nx, nn, smooth, scratch.smoothed)

@@ -10,6 +10,7 @@ from synth import make_calibration, plane_depth, render
 from app.decode import fast
 from app.decode.fast import chains, classify, columns, differences, lookup, rows, runs
 from app.decode.fast.bundles import NO_LACKING, ChainMap, Classifier, FrameTables, LabelSettings, Runs, StripeCode
+from app.decode.fast.lacking_edges import NO_LACKING_EDGES
 from app.decode.primitives import append_sparse, append_where, fill_eight, run_bounds
 from app.decode.simd import gather8, spread8x2
 from app.decode.twoshot import TwoShotDecoder, two_shot_spec
@@ -396,7 +397,7 @@ def test_vote_counts_written_with_the_columns_equal_counts_of_the_finished_rows(
     out = ChainMap(col, chain, agree, disagree, npx, span, np.zeros(3, np.int64))
     lo = np.zeros((2, W), np.float32)
     stripes = StripeCode(table, np.ones((A, A), np.bool_), np.zeros((A, A, 2), np.float32))
-    settings = LabelSettings(k, period, sw, 1, 1000, 2, 0.5, 0, 1.0, 0.3, edges_mode, False)
+    settings = LabelSettings(k, period, sw, 1, 1000, 2, 0.5, 0, 1.0, 0.3, edges_mode, False, NO_LACKING_EDGES)
     nc = 0
     for y in range(2):  # row 1 is row 0 again: every pixel pair agrees
         nc = rows.label_row(y, nr, row_runs, scratch, stripes, settings, lo, lo, out, nc)

@@ -1,5 +1,6 @@
 """Write the decoder's golden maps: `python tests/app/decode/golden/make_golden.py` (with `--missing`: only the
-cases not yet in the file, the stored ones kept as they are).
+cases not yet in the file, the stored ones kept as they are; with `--redecode NAME,NAME`: those cases' maps
+decoded again from their stored frames, everything else kept).
 
 Each case is a frame set rendered by the virtual rig at 320x240 (the frames are stored, so a change to the
 renderer never moves a golden), its calibration, patterns and decoder settings, and the fast path's column
@@ -104,8 +105,31 @@ def unpack_bits(planes: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     return np.cumsum(delta, axis=1, dtype=np.uint32).view(np.float32)
 
 
+def redecode(names: list[str]) -> int:
+    """The named cases' maps decoded again from their stored frames and calibrations (a reviewed decoder change)."""
+    with np.load(OUT) as data:
+        arrays = {k: data[k] for k in data.files}
+    for name in names:
+        if f"{name}/settings" not in arrays:
+            print(f"make_golden: no case {name!r} in {OUT.name}", file=sys.stderr)
+            return 2
+        info = json.loads(str(arrays[f"{name}/settings"]))
+        src = info["frames"]
+        frames = [arrays[f"{src}/frame{i}"] for i in range(len(info["meta"]["images"]))]
+        column, depth = decode_case(info["scheme"], frames, calibration_from(arrays, src), info, info["segmentation"])
+        arrays[f"{name}/column"] = pack_bits(column)
+        if f"{name}/depth" in arrays:
+            arrays[f"{name}/depth"] = pack_bits(depth)
+        print(f"{name}: {np.isfinite(column).mean():.3f} of the pixels decoded")
+    np.savez_compressed(OUT, **arrays)
+    print(f"wrote {OUT} ({OUT.stat().st_size / 1e6:.1f} MB)")
+    return 0
+
+
 def main(argv: list[str]) -> int:
     sys.path.insert(0, str(ROOT))
+    if "--redecode" in argv:
+        return redecode(argv[argv.index("--redecode") + 1].split(","))
     arrays: dict[str, np.ndarray] = {}
     if "--missing" in argv:
         with np.load(OUT) as data:
