@@ -9,9 +9,12 @@ left and the other's right (docs/performance.md, "Single-chip colour cameras"). 
 and its edges are placed at full resolution; between two of them the n stripes have equal width (a surface is
 smooth over a few stripes), so a lacking channel's edge there is the interpolation of the two G edges by its
 stripe count. A chain's lacking edges beyond its first or last G edge (where the nearest pair of G edges spans
-narrow stripes too) keep their measured position moved by the mean offset the interpolated ones had from their
-own measurements, signed by parity: the pull the chain's blur and width give (which parity moves which way the
-mean learns with its sign).
+narrow stripes too) have no G edge on their far side: they are placed on from that outer G edge at the stripe
+step of the chain's G edges within END_NODES nodes of it (their least-squares slope over the node index), which
+the surface keeps nearly constant over a few stripes, while an aliased edge measured alone is off by up to a
+pixel where the chain meets the image's edge or a hole. With fewer than three G edges there, they keep their
+measured position moved by the mean offset the interpolated ones had from their own measurements, signed by
+parity: the pull the chain's blur and width give (which parity moves which way the mean learns with its sign).
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from numba import njit
 import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
 
 ALIASED_WIDTH = 2.4  # camera pixels per stripe below which the lacking channel's edges come from the G edges
+END_NODES = 24  # a chain's end edges take the stripe step of its G edges among this many nodes from its outer one
 NO_LACKING_EDGES = 0  # LabelSettings.lacking_bit of frames that are not a raw mosaic's
 
 
@@ -59,11 +63,38 @@ def lacking_edges(nx: np.ndarray, nn: int, codes: np.ndarray, bit: int, stripe_w
         return
     mean = offset / n_offsets
     if not first_wide:
+        step = _g_step(nx, codes, bit, first_g, min(first_g + END_NODES, nn))
         for q in range(first_g):
-            nx[q] += _parity_sign(nx[q]) * mean
+            nx[q] = nx[first_g] - (first_g - q) * step if step > 0 else nx[q] + _parity_sign(nx[q]) * mean
     if not last_wide:
+        step = _g_step(nx, codes, bit, max(last_g - END_NODES + 1, 0), last_g + 1)
         for q in range(last_g + 1, nn):
-            nx[q] += _parity_sign(nx[q]) * mean
+            nx[q] = nx[last_g] + (q - last_g) * step if step > 0 else nx[q] + _parity_sign(nx[q]) * mean
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _g_step(nx, codes, bit, q0, q1):
+    """The least-squares slope of the G edges' positions over their node index among nodes q0..q1 - 1 (camera
+    pixels per node); 0 with fewer than three of them (or a slope that is not positive)."""
+    n = 0
+    sq = 0.0
+    sx = 0.0
+    sqq = 0.0
+    sqx = 0.0
+    x0 = nx[q0]
+    for q in range(q0, q1):
+        if (codes[q] ^ codes[q + 1]) != bit:
+            d = np.float64(q - q0)
+            x = nx[q] - x0
+            n += 1
+            sq += d
+            sx += x
+            sqq += d * d
+            sqx += d * x
+    if n < 3:
+        return 0.0
+    den = n * sqq - sq * sq
+    return max((n * sqx - sq * sx) / den, 0.0) if den > 0 else 0.0
 
 
 @njit(cache=True, nogil=True, inline="always")
