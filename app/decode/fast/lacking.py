@@ -8,7 +8,7 @@ stripe edge: inside a run of constant G sign every stripe edge flips B, so betwe
 full resolution) lie n stripes of equal width with B alternating. Per run: n is one more than the B sign
 changes seen at the run's B columns, plus the pairs of changes they missed, from the run's length over the
 local stripe width (the median of the neighbouring runs' lengths per seen stripe); the phase is the B
-columns' weighted vote, and the run is used only if every B column agrees with it.
+columns' vote, and the run is used only if every B column agrees with it, or all but one of three or more.
 
 Where the fill's sign at a column lacking B disagrees, the pixel's B values are taken as swapped between the
 two frames (the sign flips, the magnitude and the pair's mean stay). The fused decoder does that on its own
@@ -32,6 +32,10 @@ GROUP = 4  # consecutive runs that share one such median (taken around the group
 assert 2 * WINDOW + 1 == 13  # (the median's sorting network takes 13 values)
 MIN_WIDTH = 1.0  # camera pixels per stripe the model accepts for a run
 MAX_WIDTH = 3.2
+# a run is used where its channel's columns agree with the model's alternation, all of them or all but
+# MAX_DISSENT where there are at least MIN_VOTERS (docs/performance.md, "One dissenting column")
+MAX_DISSENT = 1
+MIN_VOTERS = 3
 
 
 def lacking_channel(channels: str, mosaic: str | None) -> tuple[int, int, int]:
@@ -223,9 +227,9 @@ def lacking_flips(g: np.ndarray, c: np.ndarray, cx: int, s: LackingScratch) -> i
         r_n[i] = n
         r_scale[i] = n / span
     # per run, in one loop (its values stay in registers): the phase, the channel's columns' sign against the
-    # model's alternation, used where all of them agree (each has a sign here, so that is where the sum of the
-    # agreements is their count, or minus it); then at the run's pixels lacking the channel (the runs' pixel
-    # ranges are disjoint) whether the channel's sign differs from the model
+    # model's alternation, used where all of them agree but at most `dissent` (each has a sign here, so the sum of
+    # the agreements is their count less twice the dissenting ones, or minus that); then at the run's pixels
+    # lacking the channel (the runs' pixel ranges are disjoint) whether the channel's sign differs from the model
     flip = sg  # (sg is free again)
     for x in range(W):
         flip[x] = 0
@@ -235,7 +239,9 @@ def lacking_flips(g: np.ndarray, c: np.ndarray, cx: int, s: LackingScratch) -> i
         for q in range(s0, s1 + 1, 2):
             vote += _alternating(q, e0, scale, n) * c_sign[q]
         width = (r_e1[i] - e0) / n
-        use = (MIN_WIDTH <= width) & (width <= MAX_WIDTH) & (abs(vote) * 2 == s1 - s0 + 2)
+        voters = (s1 - s0) // 2 + 1
+        dissent = MAX_DISSENT if voters >= MIN_VOTERS else 0
+        use = (MIN_WIDTH <= width) & (width <= MAX_WIDTH) & (abs(vote) >= voters - 2 * dissent)
         phase = use * (1 if vote > 0 else -1)  # (0 for a run not used)
         first = r_x0[i] + ((r_x0[i] & 1) == cx)
         for q in range(first, x1 + 1, 2):
