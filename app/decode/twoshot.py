@@ -17,6 +17,7 @@ from app.decode import fast
 from app.decode.colour import channel_rows, linearisation, unmixing_matrix
 from app.decode.fast.lacking import lacking_channel
 from app.decode.fast.lacking_edges import NO_LACKING_EDGES
+from app.decode.fast.lacking_leak import leak_channel
 from app.decode.mirror import columns_run_backwards, mirror_back, mirror_image, mirror_range
 from app.decode.mosaic_signs import lacking_signs
 from app.decode.stripemap import StripeMap
@@ -135,11 +136,18 @@ class TwoShotDecoder:
         # (the lacking channel's edges from the G edges, mirrored or not: lacking_edges.py needs no column parity)
         ig = lacking_channel(self.channels, self.mosaic)[0]
         lacking_bit = 1 << (1 - ig) if ig >= 0 else NO_LACKING_EDGES
-        key = (np.dtype(dtype), p, use_range, lacking, lacking_bit)
+        leak = leak_channel(self.channels, self.mosaic, self.mirrored)  # (the leak into G: every path, lacking_leak.py)
+        key = (np.dtype(dtype), p, use_range, lacking, lacking_bit, leak)
         if key not in self._bundles:
             tables = fast.FrameTables(*self.tables(dtype))
             classifier = fast.Classifier(
-                self.unmix, np.float32(p.t_abs), np.float32(p.t_rel), np.float32(p.t_rel_edges), int(p.block), lacking
+                self.unmix,
+                np.float32(p.t_abs),
+                np.float32(p.t_rel),
+                np.float32(p.t_rel_edges),
+                int(p.block),
+                lacking,
+                leak,
             )
             settings = label_settings(self.spec, p.label, use_range, lacking_bit)
             self._bundles[key] = (tables, classifier, self.spec.stripe_code(), settings)

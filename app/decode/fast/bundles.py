@@ -22,6 +22,7 @@ class FrameTables(NamedTuple):
 
 
 NO_LACKING = (-1, -1, -1)  # Classifier.lacking of frames not reconstructed from a raw mosaic
+NO_LEAK = (-1, -1, -1, 0)  # Classifier.leak of frames not reconstructed from a raw mosaic
 
 
 class Classifier(NamedTuple):
@@ -29,7 +30,10 @@ class Classifier(NamedTuple):
     (raw 8-bit steps), the shares t_rel (a code) and t_rel_edge (a zero-crossing sign) of the local amplitude
     (float32), and the pixels per block of that amplitude. lacking: for frames reconstructed from a raw mosaic,
     (pattern channel of G, camera channel of the other pattern channel, column parity holding it), whose signs
-    the G edges give where its columns alias the stripes (lacking.py); NO_LACKING for other frames."""
+    the G edges give where its columns alias the stripes (lacking.py); NO_LACKING for other frames. leak: for
+    such frames, mirrored or not, (pattern channel of G, camera channel of the other, column parity holding it
+    as the camera saw it, 1 if the rows are mirrored), whose leak into G is removed at its stripes' amplitude
+    (lacking_leak.py); NO_LEAK for other frames."""
 
     unmix: np.ndarray
     t_abs: np.float32
@@ -37,6 +41,7 @@ class Classifier(NamedTuple):
     t_rel_edge: np.float32
     block: int
     lacking: tuple[int, int, int]
+    leak: tuple[int, int, int, int]
 
 
 class StripeCode(NamedTuple):
@@ -116,7 +121,8 @@ class LackingScratch(NamedTuple):
     its sign changes from the column two to the left (c_changes), and the channel's signs at its columns
     (c_sign, int32); per usable run of constant G its edges (e0, e1), first and last pixel (x0, x1), first and
     last column holding the channel (s0, s1), the sign changes seen there (changes, then its stripe count), its
-    length per seen stripe (ratio) and stripes per pixel (scale); the pixels whose sign flips (flips)."""
+    length per seen stripe (ratio) and stripes per pixel (scale); the pixels whose sign flips (flips); the
+    channel's camera differences, float32 (camera_c, lacking_leak.py)."""
 
     g_max: np.ndarray
     sign: np.ndarray
@@ -135,6 +141,7 @@ class LackingScratch(NamedTuple):
     ratio: np.ndarray
     flips: np.ndarray
     scale: np.ndarray
+    camera_c: np.ndarray
 
 
 class ClassifyScratch(NamedTuple):

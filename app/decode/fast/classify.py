@@ -16,6 +16,7 @@ import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
 from app.decode.fast.bundles import Classifier, ClassifyScratch, FrameTables
 from app.decode.fast.differences import differences
 from app.decode.fast.lacking import lacking_row, lacking_scratch
+from app.decode.fast.lacking_leak import leak_row
 from app.decode.simd import spread8x2
 
 
@@ -225,7 +226,8 @@ def classify_row(
     """twoshot_classify for row y of the frames: codes into scratch.code, the unmixed differences into
     scratch.rows[0:m] and, with want_thr, the zero-crossing sign thresholds into scratch.rows[m:2m]. ahead: rows
     to prefetch meanwhile (see differences). Frames reconstructed from a raw mosaic (classifier.lacking) get the
-    lacking channel's signs from the G edges on the difference rows (lacking.lacking_row).
+    lacking channel's signs from the G edges on the difference rows (lacking.lacking_row), and its leak into G
+    removed at its stripes' amplitude (lacking_leak.leak_row).
 
     The same arithmetic in simple loops (differences and noise floors, block maxima, thresholds), each reading
     plain rows and writing one kind of array, so that each is vectorised; the coefficients live in locals
@@ -248,7 +250,8 @@ def classify_row(
     nz0 = rows[2]
     nz1 = rows[3]
     differences(f1, f2, y, tables.lin, tables.dlin, tables.packed, classifier.unmix, ta, rows, ahead)
-    lacking_row(f1, f2, y, tables, classifier, scratch)  # (a raw mosaic's aliased signs; else nothing)
+    flips = lacking_row(f1, f2, y, tables, classifier, scratch)  # (a raw mosaic's aliased signs; else nothing)
+    leak_row(f1, f2, y, tables, classifier, scratch, flips)  # (and its leak into G; else nothing)
     # block maxima of |d| at bm[1 + b], with zero guards at both ends
     bm0 = scratch.block_max[0]
     bm1 = scratch.block_max[1]

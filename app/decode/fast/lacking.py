@@ -73,6 +73,7 @@ def lacking_scratch(W: int) -> LackingScratch:
         np.empty(W, np.float64),
         np.empty(W, np.int64),
         np.empty(W, np.float64),
+        np.empty(W, np.float32),
     )
 
 

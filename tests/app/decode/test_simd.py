@@ -9,7 +9,16 @@ from synth import make_calibration, plane_depth, render
 
 from app.decode import fast
 from app.decode.fast import chains, classify, columns, differences, lookup, rows, runs
-from app.decode.fast.bundles import NO_LACKING, ChainMap, Classifier, FrameTables, LabelSettings, Runs, StripeCode
+from app.decode.fast.bundles import (
+    NO_LACKING,
+    NO_LEAK,
+    ChainMap,
+    Classifier,
+    FrameTables,
+    LabelSettings,
+    Runs,
+    StripeCode,
+)
 from app.decode.fast.lacking_edges import NO_LACKING_EDGES
 from app.decode.primitives import append_sparse, append_where, fill_eight, run_bounds
 from app.decode.simd import gather8, spread8x2
@@ -167,7 +176,7 @@ def test_gathered_link_pass_equals_the_loop():
 def _fused_codes(f1, f2, lin, dlin, pk, unmix, t_abs, t_rel, block, code):
     scratch = classify.classify_scratch(unmix.shape[0], f1.shape[1], block)
     tables = FrameTables(lin, dlin, pk)
-    classifier = Classifier(unmix, t_abs, t_rel, t_rel, block, NO_LACKING)
+    classifier = Classifier(unmix, t_abs, t_rel, t_rel, block, NO_LACKING, NO_LEAK)
     for y in range(f1.shape[0]):
         ahead = ((scratch.block_max, 0),)  # (a row to prefetch: any)
         classify.classify_row(f1, f2, y, tables, classifier, scratch, False, ahead)
