@@ -9,11 +9,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from app.decode.colour import camera_gamma_of
+from app.decode.colour import camera_gamma_of, linearisation
 from app.decode.depth_range import check_depth_range, copy_columns
 from app.decode.fast import average_frames
 from app.decode.mosaic import NO_LEAKS, mosaic_leaks, to_rgb
 from app.decode.motion import MotionParams, MotionRepair, check_motion_mode
+from app.decode.response_inverse import ResponseInverse, response_inverse
 from app.decode.stripemap import StripeMap
 from app.decode.twoshot import SEGMENTATIONS, TwoShotDecoder
 from app.schemes import get_scheme
@@ -101,8 +102,11 @@ class FrameSetDecoder:
                 warnings.warn(self.depth_range_problem, DepthRangeWarning, stacklevel=2)
             mixing = calibration.color_mixing
             gamma = camera_gamma_of(calibration)
-        # a raw mosaic's lacking channel is filled consistently with the unmixing the decoder applies
+        # a raw mosaic's lacking channel is filled consistently with the unmixing the decoder applies, in the linear
+        # light of the camera response it linearises with (per frame depth: response)
         self.leaks = mosaic_leaks(mixing) if self.mosaic is not None else NO_LEAKS
+        self.camera_gamma = gamma
+        self._responses: dict[np.dtype, ResponseInverse] = {}
         self.decoder = self.kind.make_decoder(pattern_meta, proj_w, mixing, column_range, segmentation, gamma)
         if isinstance(self.decoder, TwoShotDecoder):  # the lacking channel's signs from the G edges, in its row loop
             self.decoder.mosaic = self.mosaic
@@ -173,10 +177,26 @@ class FrameSetDecoder:
             for raw, rgb in self._rgb_cache:
                 if raw is frame:
                     return rgb
-        rgb = to_rgb(frame, self.mosaic, self.leaks)
+        rgb = to_rgb(frame, self.mosaic, self.leaks, self.response(frame.dtype))
         with self._rgb_lock:
             self._rgb_cache.append((frame, rgb))
         return rgb
+
+    def response(self, dtype: np.dtype) -> ResponseInverse:
+        """The camera response the decoder linearises frames of this depth with, and its inverse (the two-shot
+        decoder's tables, else the calibration's gamma), built once per depth."""
+        dtype = np.dtype(dtype)
+        with self._rgb_lock:
+            found = self._responses.get(dtype)
+        if found is None:
+            if isinstance(self.decoder, TwoShotDecoder):
+                lin = self.decoder.luts(dtype)[0]
+            else:
+                lin = linearisation(65536 if dtype == np.uint16 else 256, self.camera_gamma)[0]
+            found = response_inverse(lin)
+            with self._rgb_lock:
+                self._responses[dtype] = found
+        return found
 
     def repaired(
         self, frames: list[np.ndarray], newest: int | None, previous: np.ndarray | None

@@ -17,7 +17,7 @@ from app.decode.mosaic import NO_LEAKS, mosaic_leaks, stripe_rgb
 from app.decode.mosaic_signs import lacking_signs
 from app.decode.pipeline import EmptyResultWarning, FrameSetDecoder
 from core.errors import InputError
-from core.mosaic import MOSAICS, mosaic_name, sample_mosaic
+from core.mosaic import MOSAICS, mosaic_name, sample_mosaic, site_codes
 from core.patterns import make_patterns
 from drivers.sim.rig import VirtualRig
 
@@ -261,7 +261,7 @@ def test_the_leak_consistent_fill_gains_on_saturated_colours(panel, mosaic) -> N
             res = dec.decode(raw)
         found[leaks] = score(res.stripes.column, res.depth, gt.column, gt.depth, gt.lit)[:2]
     (cov, cor), (cov0, _) = found["calibration"], found[NO_LEAKS]
-    # (320x240: 79-81 % with the leaks, 72-74 % without, for every order and both depths)
+    # (320x240: 86-88 % with the leaks, 72-74 % without, for every order and both depths)
     assert cov > 0.77 and cov > cov0 + 0.04 and cor > 0.99
 
 
@@ -292,9 +292,9 @@ def test_the_leak_into_g_at_the_stripes_amplitude_gains_on_saturated_colours(pan
     cov, cor, w1 = _decode(panel, raw, mosaic)
     _without_leak_removal(monkeypatch)
     cov0, cor0, w10 = _decode(panel, raw, mosaic)
-    # (320x240: 82.1-82.9 % with it, 79.8-81.3 % without, correct within 0.1 point, within 1 mm 0.3-0.5 point
+    # (320x240: 86.3-87.4 % with it, 84.8-85.9 % without, correct within 0.2 point, within 1 mm 0.3-0.6 point
     # lower on the pixels it adds, for every order and both depths)
-    assert cov > cov0 + 0.012 and cor > 0.995 and cor >= cor0 - 0.002 and w1 > w10 - 0.01
+    assert cov > cov0 + 0.008 and cor > 0.995 and cor >= cor0 - 0.003 and w1 > w10 - 0.01
 
 
 def test_a_mirrored_rig_removes_the_leak_into_g_too(monkeypatch) -> None:
@@ -303,8 +303,8 @@ def test_a_mirrored_rig_removes_the_leak_into_g_too(monkeypatch) -> None:
     cov, cor, _ = _decode(panel, raw, "RGGB")
     _without_leak_removal(monkeypatch)
     cov0, _, _ = _decode(panel, raw, "RGGB")
-    # (320x240: 85.3 % with it, 83.4 % without)
-    assert cov > cov0 + 0.01 and cor > 0.99
+    # (320x240: 87.9 % with it, 86.6 % without)
+    assert cov > cov0 + 0.007 and cor > 0.99
 
 
 @pytest.mark.parametrize("mirrored", [0, 1])
@@ -353,3 +353,44 @@ def test_the_leak_into_g_is_removed_at_the_neighbouring_columns_amplitude(mirror
     assert np.array_equal(scratch.rows[0], want)
     assert (want != g).sum() >= 3
     assert np.all(scratch.rows[1] == 7.0)  # (the B pattern channel keeps the reconstruction's values)
+
+
+@pytest.mark.parametrize("mosaic", MOSAICS)
+def test_a_gamma_cameras_lacking_channel_is_filled_in_linear_light(mosaic) -> None:
+    """Vertical G stripes that leak into R and B, R and B straight in x (which the cubic keeps), in linear light,
+    encoded by a camera of gamma 2.2: filled through the camera's response, the lacking channels' linear values are
+    those of the scene to about a code; filled in the codes, several codes off beside the stripes."""
+    from app.decode.colour import linearisation
+    from app.decode.response_inverse import response_inverse
+
+    gamma, kr, kb = 2.2, 0.09, 0.08
+    x = np.arange(64)
+    g = np.where((x // 2) % 2 == 0, 50.0, 230.0)
+    scene = np.stack([200 - 2.0 * x + kr * g, g, 40 + 1.5 * x + kb * g], -1)[None].repeat(8, 0)
+    frame = np.round(255 * (scene / 255) ** (1 / gamma)).astype(np.uint8)
+    raw = sample_mosaic(frame, mosaic)
+    lin = linearisation(256, gamma)[0]
+    codes = site_codes(mosaic)
+    for response, bound in ((response_inverse(lin), 1.5), (None, None)):
+        rgb = stripe_rgb(raw, mosaic, leaks=(kr, kb), response=response)
+        worst = []
+        for c in (0, 2):
+            lacking = ~np.isin(np.arange(64) % 2, [p for p in (0, 1) if c in codes[:, p]])
+            inner = lacking & (x >= 3) & (x < 61)
+            worst.append(np.abs(lin[c][rgb[:, inner, c]] - scene[:, inner, c]).max())
+        if bound is not None:
+            assert max(worst) < bound, worst
+        else:
+            assert min(worst) > 2.0, worst  # (the codes' fill: what the response's fill corrects)
+
+
+def test_the_fill_in_linear_light_gains_on_saturated_colours(panel, monkeypatch) -> None:
+    from app.decode.response_inverse import identity_inverse
+
+    raw = [sample_mosaic(f, "RGGB") for f in panel[3]]
+    cov, cor, _ = _decode(panel, raw, "RGGB")
+    monkeypatch.setattr(FrameSetDecoder, "response", lambda self, dtype: identity_inverse(dtype))
+    cov0, cor0, _ = _decode(panel, raw, "RGGB")
+    # (320x240: 86.3-87.4 % through the rig camera's gamma, 82.1-82.9 % in its codes, for every order and both
+    # depths)
+    assert cov > cov0 + 0.025 and cor > 0.995 and cor >= cor0 - 0.002
