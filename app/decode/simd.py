@@ -13,7 +13,8 @@ that appends carries its count from element to element and is never vectorised);
 eight times as one vector.
 
 The code is chosen per compile target, when numba compiles: on AVX-512 gathers and compresses are single
-instructions. An AVX2 target without AVX-512 has gathers but no compress, which LLVM would expand into one store
+instructions. Without AVX-512 the gathers load lane by lane (faster there than AVX2's gather instruction). An AVX2
+target without AVX-512 has no compress, which LLVM would expand into one store
 per lane; there the appends move the kept lanes first with AVX2's variable permute (`vpermd`), their order read
 from a 256-entry table indexed by the lane mask (`_append_permuted`). Other targets get LLVM's generic expansion.
 Every path gives the same results (the golden tests pass built for the host, for AVX2 with
@@ -64,6 +65,14 @@ def _positions(builder: ir.IRBuilder, x: ir.Value, elem: ir.IntType = _I64) -> i
 def _masked_gather(builder: ir.IRBuilder, base: ir.Value, index: ir.Value, value: ir.Type, name: str) -> ir.Value:
     """base[index] for a vector index (all lanes on): a vector of `value`; name is LLVM's type suffix (f32...)."""
     lanes = index.type.count
+    if "avx512f" not in target_features():
+        # without AVX-512 a lane-by-lane load is faster than AVX2's gather (microcoded on AMD Zen 2/3, and
+        # behind scalar loads on Intel too; docs/performance.md): the same values, so the same results
+        out = ir.Constant(ir.VectorType(value, lanes), ir.Undefined)
+        for i in range(lanes):
+            at = builder.extract_element(index, ir.Constant(_I32, i))
+            out = builder.insert_element(out, builder.load(builder.gep(base, [at])), ir.Constant(_I32, i))
+        return out
     vptr = ir.VectorType(value.as_pointer(), lanes)
     # a GEP with a vector index gives the lanes' addresses; llvmlite's GEP types only scalar indices, so it is
     # built with one and then given the vector and its result type (llvmlite internals, checked by the tests)
