@@ -13,10 +13,10 @@ that appends carries its count from element to element and is never vectorised);
 eight times as one vector.
 
 The code is chosen per compile target, when numba compiles: on AVX-512 gathers and compresses are single
-instructions. Without AVX-512 the gathers load lane by lane (faster there than AVX2's gather instruction). An AVX2
-target without AVX-512 has no compress, which LLVM would expand into one store
-per lane; there the appends move the kept lanes first with AVX2's variable permute (`vpermd`), their order read
-from a 256-entry table indexed by the lane mask (`_append_permuted`). Other targets get LLVM's generic expansion.
+instructions. Without AVX-512 the gathers are loads lane by lane, each from its 32-bit index. An AVX2 target
+without AVX-512 has no compress, which LLVM would expand into one store per lane; there the appends move the
+kept lanes first with AVX2's variable permute (`vpermd`), their order read from a 256-entry table indexed by the
+lane mask (`_append_permuted`). Other targets get LLVM's generic expansion.
 Every path gives the same results (the golden tests pass built for the host, for AVX2 with
 `NUMBA_CPU_NAME=haswell` and `NUMBA_CPU_FEATURES` set to Haswell's features — the CPU name alone keeps the host's
 AVX-512 — and for a generic x86-64). What they gain: docs/performance.md.
@@ -66,8 +66,8 @@ def _masked_gather(builder: ir.IRBuilder, base: ir.Value, index: ir.Value, value
     """base[index] for a vector index (all lanes on): a vector of `value`; name is LLVM's type suffix (f32...)."""
     lanes = index.type.count
     if "avx512f" not in target_features():
-        # without AVX-512 a lane-by-lane load is faster than AVX2's gather (microcoded on AMD Zen 2/3, and
-        # behind scalar loads on Intel too; docs/performance.md): the same values, so the same results
+        # LLVM expands the gather into scalar loads here anyway, but from 64-bit addresses it first builds as
+        # vectors; loads from each lane's 32-bit index are cheaper (docs/performance.md) and read the same values
         out = ir.Constant(ir.VectorType(value, lanes), ir.Undefined)
         for i in range(lanes):
             at = builder.extract_element(index, ir.Constant(_I32, i))

@@ -459,8 +459,9 @@ print(compress_by_permute(), "vpermd" in asm, "zmm" in asm)
 """
 
 
-def _in_avx2_build(tmp_path, probe: str, tests: str) -> str:
-    """Runs the probe and then this file's tests selected by -k in a Haswell build; the probe's output."""
+def test_an_avx2_build_appends_by_permutes_and_gathers_lane_by_lane_with_the_same_results(tmp_path):
+    """The permuted appends and the lane-by-lane loads (simd._masked_gather without AVX-512) run only in an AVX2
+    build: this file's append and gather tests, compiled for Haswell."""
     import os
     import subprocess
     import sys
@@ -470,40 +471,14 @@ def _in_avx2_build(tmp_path, probe: str, tests: str) -> str:
 
     env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
     env.update(AVX2_ENV, NUMBA_CACHE_DIR=str(tmp_path))
-    run = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True)
-    assert run.returncode == 0, run.stderr
+    probe = subprocess.run([sys.executable, "-c", AVX2_PROBE], env=env, capture_output=True, text=True)
+    assert probe.returncode == 0, probe.stderr
+    assert probe.stdout.split() == ["True", "True", "False"]  # permutes, no 512-bit registers
     here = Path(__file__)
-    done = subprocess.run(
-        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", str(here), "-k", tests],
+    chosen = "compressed or (gather and not avx2)"
+    tests = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", str(here), "-k", chosen],
         env=env, cwd=here.parents[3], capture_output=True, text=True,
     )  # fmt: skip
-    assert done.returncode == 0, done.stdout[-2000:]
-    assert " passed" in done.stdout and " failed" not in done.stdout
-    return run.stdout
-
-
-def test_an_avx2_build_appends_by_permutes_with_the_same_results(tmp_path):
-    out = _in_avx2_build(tmp_path, AVX2_PROBE, "compressed")
-    assert out.split() == ["True", "True", "False"]  # permutes, no 512-bit registers
-
-
-GATHER_PROBE = """
-import numpy as np
-from numba import njit
-from app.decode.primitives import gather
-
-@njit
-def read(table, idx, out):
-    gather(out, table, idx, 16)
-
-read(np.arange(40, dtype=np.float32), np.arange(16, dtype=np.int32), np.zeros(16, np.float32))
-asm = next(iter(read.inspect_asm().values()))
-print("zmm" in asm)
-"""
-
-
-def test_an_avx2_build_gathers_lane_by_lane_with_the_same_results(tmp_path):
-    """The lane-by-lane loads (simd._masked_gather without AVX-512) run only in an AVX2 build: its gather and
-    differences tests, compiled for Haswell."""
-    out = _in_avx2_build(tmp_path, GATHER_PROBE, "gather and not avx2")
-    assert out.split() == ["False"]  # an AVX2 build: no 512-bit registers
+    assert tests.returncode == 0, tests.stdout[-2000:]
+    assert " passed" in tests.stdout and " failed" not in tests.stdout
