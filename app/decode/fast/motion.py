@@ -51,14 +51,20 @@ def repair_older(
     windows along the row, then that of the local means; spread: how far along the row a moving pixel's mark reaches."""
     newest, older, previous = frames
     H, W, C = newest.shape
-    rows = np.empty((7 * C + 9, W), np.float32)  # the segments' scratch rows
-    # table indices and gathered values: C rows of int32, a row of int64 (a pair table's entries); the newest and the
-    # older frame's quantised values along the row and their running sums, int32 (exact: any start gives the same window
-    # sums); per pixel of a row, the local means' floors (window, left half, right half) in sums' units and the window's
-    # reciprocal count (the window clipped at the row's ends)
+    rows = _scratch_rows(C, W)
     per_pixel = np.empty((4, W), np.float32)
     _window_constants(W, radii[2], limits[5], per_pixel)
-    lookups = (np.empty((C, W), np.int32), np.empty(W, np.int64), np.empty((4, W + 1), np.int32), per_pixel)
+    # table indices and gathered values: C rows of int32, a row of int64 (a pair table's entries); the newest and the
+    # older frame's quantised values along the row and their running sums, int32 (exact: any start gives the same
+    # window sums); per pixel of a row, the local means' floors (window, left half, right half) in sums' units and
+    # the window's reciprocal count (the window clipped at the row's ends)
+    quantised_rows = (
+        np.empty(W + 1, np.int32),
+        np.empty(W + 1, np.int32),
+        np.empty(W + 1, np.int32),
+        np.empty(W + 1, np.int32),
+    )
+    lookups = (np.empty((C, W), np.int32), np.empty(W, np.int64), quantised_rows, per_pixel)
     # the rough change test per raw value of a row (a byte each, whole words to scan), its threshold per raw value
     # (the channel's quiet distance; never passed in a channel not watched) and the row's candidates
     rough = np.zeros(((W * C + 7) // 8) * 8, np.uint8)
@@ -78,6 +84,29 @@ def repair_older(
     flat = (older.reshape(H, W * C), out.reshape(H, W * C), newest.reshape(H, W * C), previous.reshape(H, W * C))
     return _repair_rows(
         (newest, previous, older, out), tables, watched, limits, radii, spread, rows, lookups, flat, scan
+    )
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _scratch_rows(C, W):
+    """The segments' float32 scratch rows, each named row (or per-channel block) its own allocation: the vectoriser
+    cannot separate stores into two rows of one array from its other accesses (its overlap check then sends the loop
+    to its scalar form), while rows of distinct allocations get a check that passes."""
+    f = np.float32
+    return (
+        np.empty((C, W), f),  # 0 ln: the newest frame's linear values, channel-planar
+        np.empty((C, W), f),  # 1 hi: their extremes over the envelope window
+        np.empty((C, W), f),  # 2 lo
+        (np.empty(W, f), np.empty(W, f), np.empty(W, f), np.empty(W, f)),  # 3 spans: the envelopes' sparse table
+        np.empty(W, f),  # 4 wide_hi: the extremes over the wide window, one channel
+        np.empty(W, f),  # 5 wide_lo
+        np.empty(W, f),  # 6 changed: 1 where the pixel changed, else 0 (float32: their max and min vectorise)
+        np.empty(W, f),  # 7 moving
+        np.empty((C, W), f),  # 8 changes: |newest - previous|, linear, per watched channel
+        np.empty((C, W), f),  # 9 slopes: the newest and the previous frame's noise slopes summed, per watched channel
+        np.empty((C, W), f),  # 10 sums_new: the newest frame's local sums (quantised, exact in float32), per channel
+        np.empty((C, W), f),  # 11 sums_old: the older frame's
+        np.empty(W, f),  # 12 agree: 1 where the two frames' local means agree in every watched channel, else 0
     )
 
 
@@ -143,14 +172,14 @@ def _row_candidates(frames, tables, watched, limits, flat, scan, rows, lookups, 
             any_rough |= words[k]
         if any_rough == 0:
             return 0
-    candidate = rows[3 * C + 6]
+    candidate = rows[6]
     index, entries = lookups[0], lookups[1]
     entry_halves = entries.view(np.float32)
     shared_pairs = pairs.shape[0] == PAIR_ENTRIES
     _fill(candidate, 0.0)
     for i in range(watched.shape[0]):
         c = watched[i]
-        change, slope_sum = rows[3 * C + 8 + i], rows[4 * C + 8 + i]  # (kept for the row's segments)
+        change, slope_sum = rows[8][i], rows[9][i]  # (kept for the row's segments)
         if pairs.shape[0] >= PAIR_ENTRIES:  # 8-bit: (lin[n] - lin[p], dlin[n] + dlin[p]) in one gather
             base = np.int32(0 if shared_pairs else c * PAIR_ENTRIES)
             at = index[0]
@@ -215,19 +244,9 @@ def _repair_span(frames, tables, watched, limits, radii, spread, rows, lookups, 
     W, C = newest.shape[1], newest.shape[2]
     rel, noise_k, floor, narrow_share = limits[0], limits[1], limits[2], limits[3]
     mean_share = limits[4]
-    ln = rows[0:C]  # the newest frame's linear values, channel-planar
-    hi = rows[C : 2 * C]  # their extremes over the envelope window
-    lo = rows[2 * C : 3 * C]
-    spans = rows[3 * C : 3 * C + 4]
-    wide_hi = rows[3 * C + 4]  # the extremes over the wide window, one channel
-    wide_lo = rows[3 * C + 5]
-    changed = rows[3 * C + 6]  # 1 where the pixel changed, else 0 (float32 rows: their max and min vectorise)
-    moving = rows[3 * C + 7]
-    changes = rows[3 * C + 8 : 4 * C + 8]  # |newest - previous|, linear, per watched channel
-    slopes = rows[4 * C + 8 : 5 * C + 8]  # the newest and the previous frame's noise slopes summed, per watched channel
-    sums_new = rows[5 * C + 8 : 6 * C + 8]  # the newest frame's local sums (quantised, exact in float32), per channel
-    sums_old = rows[6 * C + 8 : 7 * C + 8]  # the older frame's
-    agree = rows[7 * C + 8]  # 1 where the two frames' local means agree in every watched channel, else 0
+    ln, hi, lo, spans, wide_hi, wide_lo = rows[0], rows[1], rows[2], rows[3], rows[4], rows[5]
+    changed, moving, changes, slopes = rows[6], rows[7], rows[8], rows[9]
+    sums_new, sums_old, agree = rows[10], rows[11], rows[12]
     index, quantised_rows, per_pixel = lookups[0], lookups[2], lookups[3]
     qn, qo, sn, so = quantised_rows[0], quantised_rows[1], quantised_rows[2], quantised_rows[3]
     n = b - a
@@ -246,7 +265,7 @@ def _repair_span(frames, tables, watched, limits, radii, spread, rows, lookups, 
         gather(ln[c, e2:f2], lin[c], at, f2 - e2)
         # the narrow window where it holds both levels of the channel (its contrast a share of the wide
         # window's), else the wide one: a narrow window reaches across fewer albedo and depth edges
-        spans_ef = (spans[0, e:f], spans[1, e:f], spans[2, e:f], spans[3, e:f])
+        spans_ef = (spans[0][e:f], spans[1][e:f], spans[2][e:f], spans[3][e:f])
         _envelopes(lnc, radii[0], radii[1], hic, loc, wide_hi[e:f], wide_lo[e:f], spans_ef, (e == 0, f == W))
         hic, loc, whi, wlo = hi[c, a:b], lo[c, a:b], wide_hi[a:b], wide_lo[a:b]
         for x in range(n):
@@ -268,12 +287,13 @@ def _repair_span(frames, tables, watched, limits, radii, spread, rows, lookups, 
         # that moved inside the window changes one half's level while the whole's may stay within the share.
         if _is_watched(watched, c):
             # the halves [x - rm, x] and [x, x + rm], and the window as their sum less pixel x (exact integers)
-            halves = (spans[0, a:b], spans[1, a:b], spans[2, a:b], spans[3, a:b])  # (free until the next channel)
+            halves = (spans[0][a:b], spans[1][a:b], spans[2][a:b], spans[3][a:b])  # (free until the next channel)
             _window_sums(sn, s0, a, b, -rm, 0, W, halves[0])
             _window_sums(so, s0, a, b, -rm, 0, W, halves[1])
             _window_sums(sn, s0, a, b, 0, rm, W, halves[2])
             _window_sums(so, s0, a, b, 0, rm, W, halves[3])
-            _agree_halves(halves, qn[a - s0 :], qo[a - s0 :], mean_share, per_pixel[:3, a:b], mn, mo, agree_ab)
+            floors = (per_pixel[0, a:b], per_pixel[1, a:b], per_pixel[2, a:b])
+            _agree_halves(halves, qn[a - s0 :], qo[a - s0 :], mean_share, floors, mn, mo, agree_ab)
         else:
             _window_sums(sn, s0, a, b, -rm, rm, W, mn)
             _window_sums(so, s0, a, b, -rm, rm, W, mo)
@@ -424,14 +444,15 @@ def _agree_halves(halves, qn, qo, share, floors, mn, mo, agree):
     = 0 where the two frames' sums over the window or either half differ by more than share of their sum plus the
     floor (floors: window, left half, right half)."""
     left_n, left_o, right_n, right_o = halves
+    floor_window, floor_left, floor_right = floors
     for x in range(agree.shape[0]):
         u = left_n[x] + right_n[x] - np.float32(qn[x])  # (exact: integers below 2^24)
         v = left_o[x] + right_o[x] - np.float32(qo[x])
         mn[x] = u
         mo[x] = v
-        ok = abs(u - v) <= share * (u + v) + floors[0, x]
-        ok &= abs(left_n[x] - left_o[x]) <= share * (left_n[x] + left_o[x]) + floors[1, x]
-        ok &= abs(right_n[x] - right_o[x]) <= share * (right_n[x] + right_o[x]) + floors[2, x]
+        ok = abs(u - v) <= share * (u + v) + floor_window[x]
+        ok &= abs(left_n[x] - left_o[x]) <= share * (left_n[x] + left_o[x]) + floor_left[x]
+        ok &= abs(right_n[x] - right_o[x]) <= share * (right_n[x] + right_o[x]) + floor_right[x]
         agree[x] = agree[x] if ok else np.float32(0.0)
 
 
