@@ -183,8 +183,14 @@ def _row_candidates(frames, tables, watched, limits, flat, scan, rows, lookups, 
         if pairs.shape[0] >= PAIR_ENTRIES:  # 8-bit: (lin[n] - lin[p], dlin[n] + dlin[p]) in one gather
             base = np.int32(0 if shared_pairs else c * PAIR_ENTRIES)
             at = index[0]
-            for x in range(W):
-                at[x] = base + (np.int32(previous[y, x, c]) << 8) + np.int32(newest[y, x, c])
+            p_row, n_row = flat[3][y], flat[2][y]
+            if C == 3:  # (a constant stride: the loop vectorises)
+                p_row, n_row = p_row[c:], n_row[c:]
+                for x in range(W):
+                    at[x] = base + (np.int32(p_row[3 * x]) << 8) + np.int32(n_row[3 * x])
+            else:
+                for x in range(W):
+                    at[x] = base + (np.int32(p_row[C * x + c]) << 8) + np.int32(n_row[C * x + c])
             gather(entries, pairs, at, W)
             for x in range(W):
                 change[x] = abs(entry_halves[2 * x])
@@ -230,6 +236,19 @@ def _row_candidates(frames, tables, watched, limits, flat, scan, rows, lookups, 
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _channel_into(row, c, C, first, n, out):
+    """out[x] = channel c of pixel first + x of a frame row flattened (C channels a pixel), for x < n. Read through
+    a view from the first value: three-dimensional indexing, or an offset of unknown sign, keeps the loop scalar."""
+    src = row[C * first + c :]
+    if C == 3:  # (a constant stride: the loop vectorises)
+        for x in range(n):
+            out[x] = src[3 * x]
+    else:
+        for x in range(n):
+            out[x] = src[C * x]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _mark_paired(centre, left, right, out):
     for x in range(out.shape[0]):
         out[x] = 1 if centre[x] != 0 and (left[x] != 0 or right[x] != 0) else 0
@@ -239,7 +258,7 @@ def _mark_paired(centre, left, right, out):
 def _repair_span(frames, tables, watched, limits, radii, spread, rows, lookups, flat, y, a, b):
     """The repair of row y's pixels [a, b) (a segment around neighbouring candidates); returns its moving pixels.
     Table reads go through `gather` (indices first, into plain rows): the loops around them then vectorise."""
-    newest, older, out = frames[0], frames[2], frames[3]
+    newest, out = frames[0], frames[3]
     lin, inverse, grid, quantised_lin = tables[0], tables[3], tables[4], tables[5]
     W, C = newest.shape[1], newest.shape[2]
     rel, noise_k, floor, narrow_share = limits[0], limits[1], limits[2], limits[3]
@@ -260,8 +279,7 @@ def _repair_span(frames, tables, watched, limits, radii, spread, rows, lookups, 
     for c in range(C):
         lnc, hic, loc = ln[c, e:f], hi[c, e:f], lo[c, e:f]
         at = index[c, e2:f2]
-        for x in range(f2 - e2):
-            at[x] = newest[y, e2 + x, c]
+        _channel_into(flat[2][y], c, C, e2, f2 - e2, at)
         gather(ln[c, e2:f2], lin[c], at, f2 - e2)
         # the narrow window where it holds both levels of the channel (its contrast a share of the wide
         # window's), else the wide one: a narrow window reaches across fewer albedo and depth edges
@@ -275,8 +293,7 @@ def _repair_span(frames, tables, watched, limits, radii, spread, rows, lookups, 
         # the local sums of the newest and the older frame over the window clipped at the row's ends
         m = g - s0
         at = index[c, :m]
-        for x in range(m):
-            at[x] = older[y, s0 + x, c]
+        _channel_into(flat[0][y], c, C, s0, m, at)
         gather(qo, quantised_lin[c], at, m)  # (the older frame's linear values serve only these sums)
         _quantise(ln[c, s0:g], qn)
         _running_sums(qn, qo, m, sn, so)
