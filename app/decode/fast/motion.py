@@ -163,10 +163,11 @@ def _row_candidates(frames, tables, watched, limits, flat, scan, rows, lookups, 
     W, C = newest.shape[1], newest.shape[2]
     if not exact:
         new_row, previous_row = flat[2][y], flat[3][y]
-        for i in range(W * C):  # (a vector loop over the row's bytes)
+        for i in range(W * C):
             u, v = new_row[i], previous_row[i]
-            d = u - v if u > v else v - u
-            rough[i] = 1 if d > beyond[i] else 0
+            hi, lo = max(u, v), min(u, v)
+            # (hi > lo first: the difference is then known positive and the loop runs in byte lanes, not int64)
+            rough[i] = 1 if hi > lo and hi - lo > beyond[i] else 0
         any_rough = 0
         for k in range(words.shape[0]):
             any_rough |= words[k]
