@@ -80,7 +80,8 @@ def repair_older(
         for i in range(watched.shape[0]):
             beyond[x * C + watched[i]] = min(max(quiet[watched[i]], 0), never)
     marks = np.zeros(((W + 7) // 8) * 8, np.uint8)  # the row's paired candidates, a byte each
-    scan = (rough, rough.view(np.uint64), beyond, np.empty(W, np.int64), exact, marks, marks.view(np.uint64))
+    distance = np.empty(W * C, newest.dtype)  # the raw change per value of a row
+    scan = (rough, rough.view(np.uint64), beyond, distance, np.empty(W, np.int64), exact, marks, marks.view(np.uint64))
     flat = (older.reshape(H, W * C), out.reshape(H, W * C), newest.reshape(H, W * C), previous.reshape(H, W * C))
     return _repair_rows(
         (newest, previous, older, out), tables, watched, limits, radii, spread, rows, lookups, flat, scan
@@ -122,7 +123,7 @@ def _repair_rows(frames, tables, watched, limits, radii, spread, rows, lookups, 
     them."""
     W = frames[0].shape[1]
     older_flat, out_flat = flat[0], flat[1]
-    xs = scan[3]
+    xs = scan[4]
     pad = max(spread, 1)
     join = 2 * max(radii[0], radii[1], radii[2])  # segments closer than this share one window reach
     n_moving = 0
@@ -159,15 +160,16 @@ def _row_candidates(frames, tables, watched, limits, flat, scan, rows, lookups, 
     newest, previous = frames[0], frames[1]
     lin, dlin, pairs = tables[0], tables[1], tables[2]
     noise_k, floor = limits[1], limits[2]
-    rough, words, beyond, xs, exact, marks, mark_words = scan
+    rough, words, beyond, distance, xs, exact, marks, mark_words = scan
     W, C = newest.shape[1], newest.shape[2]
     if not exact:
         new_row, previous_row = flat[2][y], flat[3][y]
+        # the distances stored in the frames' dtype, then compared: both loops run in the frames' lanes (one loop
+        # or a select of two differences computes in int64 lanes, on AVX2 targets at least)
         for i in range(W * C):
-            u, v = new_row[i], previous_row[i]
-            hi, lo = max(u, v), min(u, v)
-            # (hi > lo first: the difference is then known positive and the loop runs in byte lanes, not int64)
-            rough[i] = 1 if hi > lo and hi - lo > beyond[i] else 0
+            distance[i] = max(new_row[i], previous_row[i]) - min(new_row[i], previous_row[i])
+        for i in range(W * C):
+            rough[i] = 1 if distance[i] > beyond[i] else 0
         any_rough = 0
         for k in range(words.shape[0]):
             any_rough |= words[k]
