@@ -312,6 +312,7 @@ def _repair_span(frames, tables, watched, limits, radii, spread, rows, lookups, 
             _window_sums(so, s0, a, b, -rm, 0, W, halves[1])
             _window_sums(sn, s0, a, b, 0, rm, W, halves[2])
             _window_sums(so, s0, a, b, 0, rm, W, halves[3])
+            # (1-D rows: the 2-D view per_pixel[:3, a:b] has a run-time row stride, and keeps the loop scalar)
             floors = (per_pixel[0, a:b], per_pixel[1, a:b], per_pixel[2, a:b])
             _agree_halves(halves, qn[a - s0 :], qo[a - s0 :], mean_share, floors, mn, mo, agree_ab)
         else:
