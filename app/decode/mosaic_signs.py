@@ -1,7 +1,8 @@
 """Raw Bayer pairs (two-shot): the lacking channel's signs from the G edges as a pass of its own over the frames.
 
 The model is app/decode/fast/lacking.py's (lacking_flips, per row). This pass swaps the two frames' values of
-the lacking channel where the G edges say its sign is wrong, before the decoder reads them: the specification
+the lacking channel where the G edges say its sign is wrong (or moves them apart where the swap keeps its
+unmixed sign, app/decode/fast/lacking_fill.py), before the decoder reads them: the specification
 the fused decoder (which flips its own difference rows, fast.lacking.lacking_row) is tested against, and the
 path of rigs decoded mirrored (TwoShotDecoder.decode), whose mirrored rows the model would see otherwise.
 """
@@ -14,6 +15,7 @@ from numba import njit
 import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
 from app.decode.fast.differences import differences
 from app.decode.fast.lacking import lacking_channel, lacking_flips, lacking_scratch
+from app.decode.fast.lacking_fill import model_sign_codes
 
 
 def lacking_signs(rgb1: np.ndarray, rgb2: np.ndarray, mosaic: str, decoder: object) -> tuple[np.ndarray, np.ndarray]:
@@ -29,14 +31,16 @@ def lacking_signs(rgb1: np.ndarray, rgb2: np.ndarray, mosaic: str, decoder: obje
     f2 = np.ascontiguousarray(rgb2)
     o1 = f1.copy()
     o2 = f2.copy()
-    _fix_pair(f1, f2, lin, dlin, packed, decoder.unmix, ig, cam, cx, o1, o2)
+    _fix_pair(f1, f2, (lin, dlin, packed, decoder.inverse(rgb1.dtype)), decoder.unmix, ig, cam, cx, o1, o2)
     return o1, o2
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _fix_pair(f1, f2, lin, dlin, packed, unmix, ig, cam, cx, o1, o2):
+def _fix_pair(f1, f2, tables, unmix, ig, cam, cx, o1, o2):
     """o1, o2: copies of f1, f2, changed where the lacking channel (camera channel cam, held by the columns of
-    parity cx) gets the other sign; returns how many pixels changed."""
+    parity cx) gets the other sign; returns how many pixels changed. tables: (lin, dlin, packed) of the decoder
+    (TwoShotDecoder.tables) and the response's inverse (TwoShotDecoder.inverse)."""
+    lin, dlin, packed, inverse = tables
     H, W = f1.shape[0], f1.shape[1]
     rows = np.empty((4, W), np.float32)
     ahead = ((np.zeros((1, 1), np.float32), 0),)
@@ -47,7 +51,21 @@ def _fix_pair(f1, f2, lin, dlin, packed, unmix, ig, cam, cx, o1, o2):
         n = lacking_flips(rows[ig], rows[1 - ig], cx, s)
         for i in range(n):
             x = s.flips[i]
-            o1[y, x, cam] = f2[y, x, cam]
-            o2[y, x, cam] = f1[y, x, cam]
+            a = (f1[y, x, 0], f1[y, x, 1], f1[y, x, 2])
+            b = (f2[y, x, 0], f2[y, x, 1], f2[y, x, 2])
+            a, b = _exchanged(a, b, cam)
+            a, b = model_sign_codes(a, b, cam, unmix[1 - ig], inverse, rows[1 - ig, x])
+            o1[y, x, cam] = a[cam]
+            o2[y, x, cam] = b[cam]
         changed += n
     return changed
+
+
+@njit(inline="always")
+def _exchanged(a, b, cam):
+    """The codes (c0, c1, c2) of a pixel in both frames with camera channel cam exchanged between them."""
+    if cam == 0:
+        return (b[0], a[1], a[2]), (a[0], b[1], b[2])
+    if cam == 1:
+        return (a[0], b[1], a[2]), (b[0], a[1], b[2])
+    return (a[0], a[1], b[2]), (b[0], b[1], a[2])

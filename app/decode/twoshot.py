@@ -20,6 +20,7 @@ from app.decode.fast.lacking_edges import NO_LACKING_EDGES
 from app.decode.fast.lacking_leak import leak_channel
 from app.decode.mirror import columns_run_backwards, mirror_back, mirror_image, mirror_range
 from app.decode.mosaic_signs import lacking_signs
+from app.decode.response_inverse import ResponseInverse, identity_inverse, response_inverse
 from app.decode.stripemap import StripeMap
 from app.decode.windows import EMPTY_RANGE, LabelParams, WindowSpec, label_settings, window_lookup
 from app.errors import InputError
@@ -99,6 +100,7 @@ class TwoShotDecoder:
         self.camera_response = camera_response
         self._luts: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._packed: dict[int, np.ndarray] = {}
+        self._inverses: dict[int, ResponseInverse] = {}
         self._bundles: dict[tuple, tuple] = {}
         # frames reconstructed from this raw Bayer mosaic (app/decode/mosaic.py): the lacking channel's signs come
         # from the G edges where its columns alias the stripes (fast/lacking.py); None for other frames
@@ -126,6 +128,14 @@ class TwoShotDecoder:
             self._packed[levels] = pairs if pairs.size else fast.pack_tables(lin, dlin)
         return lin, dlin, self._packed[levels]
 
+    def inverse(self, dtype: np.dtype) -> ResponseInverse:
+        """The inverse of luts(dtype)'s camera response (app/decode/response_inverse.py), built once per depth."""
+        lin = self.luts(dtype)[0]
+        levels = lin.shape[1]
+        if levels not in self._inverses:
+            self._inverses[levels] = response_inverse(lin)
+        return self._inverses[levels]
+
     def bundles(self, dtype: np.dtype, use_range: bool) -> tuple:
         """What fast.twoshot_rows reads besides the frames, the geometry and the maps: (FrameTables, Classifier,
         StripeCode, LabelSettings), built once per frame depth and parameters (the per-frame call passes them as
@@ -139,7 +149,9 @@ class TwoShotDecoder:
         leak = leak_channel(self.channels, self.mosaic, self.mirrored)  # (the leak into G: every path, lacking_leak.py)
         key = (np.dtype(dtype), p, use_range, lacking, lacking_bit, leak)
         if key not in self._bundles:
-            tables = fast.FrameTables(*self.tables(dtype))
+            # (the inverse serves a raw mosaic's fill only: other frames need no increasing response)
+            inverse = self.inverse(dtype) if self.mosaic is not None else identity_inverse(dtype)
+            tables = fast.FrameTables(*self.tables(dtype), inverse)
             classifier = fast.Classifier(
                 self.unmix,
                 np.float32(p.t_abs),

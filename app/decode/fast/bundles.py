@@ -11,14 +11,19 @@ from typing import NamedTuple
 
 import numpy as np
 
+from app.decode.response_inverse import ResponseInverse
+
 
 class FrameTables(NamedTuple):
     """The camera response, read per pixel: linearised value and noise slope (3, levels) float32, and `packed`,
-    the two read together (pair_tables for 8-bit frames, else pack_tables; int64 entries of float32 pairs)."""
+    the two read together (pair_tables for 8-bit frames, else pack_tables; int64 entries of float32 pairs); and
+    its inverse, a linear value back to a code (app/decode/response_inverse.py: the lacking channel's moved fill,
+    lacking_fill.py)."""
 
     lin: np.ndarray
     dlin: np.ndarray
     packed: np.ndarray
+    inverse: ResponseInverse
 
 
 NO_LACKING = (-1, -1, -1)  # Classifier.lacking of frames not reconstructed from a raw mosaic
@@ -121,8 +126,9 @@ class LackingScratch(NamedTuple):
     its sign changes from the column two to the left (c_changes), and the channel's signs at its columns
     (c_sign, int32); per usable run of constant G its edges (e0, e1), first and last pixel (x0, x1), first and
     last column holding the channel (s0, s1), the sign changes seen there (changes, then its stripe count), its
-    length per seen stripe (ratio) and stripes per pixel (scale); the pixels whose sign flips (flips); the
-    channel's camera differences, float32 (camera_c, lacking_leak.py)."""
+    length per seen stripe (ratio) and stripes per pixel (scale); the pixels whose sign flips (flips) and their
+    camera difference of the channel once flipped, float32 (flipped_c, lacking_fill.py); the channel's camera
+    differences, float32 (camera_c, lacking_leak.py)."""
 
     g_max: np.ndarray
     sign: np.ndarray
@@ -142,6 +148,7 @@ class LackingScratch(NamedTuple):
     flips: np.ndarray
     scale: np.ndarray
     camera_c: np.ndarray
+    flipped_c: np.ndarray
 
 
 class ClassifyScratch(NamedTuple):

@@ -24,6 +24,7 @@ from numba import njit
 
 import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
 from app.decode.fast.bundles import NO_LACKING, Classifier, ClassifyScratch, FrameTables, LackingScratch
+from app.decode.fast.lacking_fill import model_sign_codes
 from core.mosaic import CHANNEL, site_codes
 
 G_STRONG = 0.05  # a G sign counts at |dG| of this share of its local maximum (three 8-pixel blocks)
@@ -74,6 +75,7 @@ def lacking_scratch(W: int) -> LackingScratch:
         np.empty(W, np.int64),
         np.empty(W, np.float64),
         np.empty(W, np.float32),
+        np.empty(W, np.float32),
     )
 
 
@@ -81,9 +83,11 @@ def lacking_scratch(W: int) -> LackingScratch:
 def lacking_row(
     f1: np.ndarray, f2: np.ndarray, y: int, tables: FrameTables, classifier: Classifier, scratch: ClassifyScratch
 ) -> int:
-    """Row y's difference rows (scratch.rows[0:2], as differences wrote them) with the lacking channel's values
-    taken as swapped between the frames where the G edges say its sign is wrong; no change without
-    classifier.lacking. Returns the pixels changed. The noise floors (rows 2, 3) stay: a sum of both values'."""
+    """Row y's difference rows and noise floors (scratch.rows[0:4], as differences wrote them) with the lacking
+    channel's values taken as swapped between the frames where the G edges say its sign is wrong, or moved
+    apart where the swap keeps its unmixed sign (lacking_fill.model_sign_codes); no change without
+    classifier.lacking. Returns the pixels changed (scratch.lacking.flips), their camera difference of the
+    channel into scratch.lacking.flipped_c."""
     ig, cam, cx = classifier.lacking
     if cam < 0:
         return 0
@@ -91,16 +95,22 @@ def lacking_row(
     s = scratch.lacking
     n = lacking_flips(rows[ig], rows[1 - ig], cx, s)
     lin = tables.lin
+    dl = tables.dlin
     u = classifier.unmix
     u00, u01, u02, u10, u11, u12 = u[0, 0], u[0, 1], u[0, 2], u[1, 0], u[1, 1], u[1, 2]
+    w00, w01, w02, w10, w11, w12 = abs(u00), abs(u01), abs(u02), abs(u10), abs(u11), abs(u12)
+    ta = classifier.t_abs * np.float32(0.5)
+    unmixed = u[1 - ig]
+    inverse = tables.inverse
     a = f1[y]
     b = f2[y]
-    fv0 = rows[0]
-    fv1 = rows[1]
+    fv0, fv1, nz0, nz1 = rows[0], rows[1], rows[2], rows[3]
+    lacking = rows[1 - ig]
     for i in range(n):
         x = s.flips[i]
-        # e_c = lin[c, b] - lin[c, a], a and b exchanged in the lacking channel; then the unmixing in the order
-        # of the differences stage (_row_differences, simd.differences16), so that the values are bit-identical
+        # the lacking channel exchanged between the frames, or moved where the exchange keeps its unmixed sign
+        # (lacking_fill); then the differences and noise floors in the order of the differences stage
+        # (_row_differences, simd.differences16), so that the values are those of frames holding these codes
         a0, a1, a2 = a[x, 0], a[x, 1], a[x, 2]
         b0, b1, b2 = b[x, 0], b[x, 1], b[x, 2]
         if cam == 0:
@@ -109,11 +119,18 @@ def lacking_row(
             a1, b1 = b1, a1
         else:
             a2, b2 = b2, a2
+        (a0, a1, a2), (b0, b1, b2) = model_sign_codes((a0, a1, a2), (b0, b1, b2), cam, unmixed, inverse, lacking[x])
         e0 = lin[0, b0] - lin[0, a0]
         e1 = lin[1, b1] - lin[1, a1]
         e2 = lin[2, b2] - lin[2, a2]
+        n0 = dl[0, b0] + dl[0, a0]
+        n1 = dl[1, b1] + dl[1, a1]
+        n2 = dl[2, b2] + dl[2, a2]
         fv0[x] = u00 * e0 + u01 * e1 + u02 * e2
         fv1[x] = u10 * e0 + u11 * e1 + u12 * e2
+        nz0[x] = ta * (w00 * n0 + w01 * n1 + w02 * n2)
+        nz1[x] = ta * (w10 * n0 + w11 * n1 + w12 * n2)
+        s.flipped_c[i] = e0 if cam == 0 else (e1 if cam == 1 else e2)
     return n
 
 

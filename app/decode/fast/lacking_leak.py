@@ -47,8 +47,8 @@ def leak_row(
 ) -> None:
     """Row y's G pattern channel (scratch.rows[ig], after the sign model) with the lacking channel's leak removed
     at the amplitude of its neighbouring columns, at the columns lacking it; nothing without classifier.leak.
-    n_flips: the pixels the sign model flipped (scratch.lacking.flips[:n_flips]), whose camera difference takes
-    the other sign, as their swapped values give."""
+    n_flips: the pixels the sign model flipped (scratch.lacking.flips[:n_flips]), whose camera difference is
+    the one their new values give (scratch.lacking.flipped_c, lacking.lacking_row)."""
     ig, cam, cx, mirrored = classifier.leak
     if cam < 0:
         return
@@ -61,8 +61,7 @@ def leak_row(
     for x in range(W):
         e[x] = lc[b[x]] - lc[a[x]]
     for i in range(n_flips):
-        x = s.flips[i]
-        e[x] = -e[x]
+        e[s.flips[i]] = s.flipped_c[i]
     held = (W - 1 - cx) & 1 if mirrored else cx  # (the parity of the columns holding the channel, in these rows)
     k = classifier.unmix[ig, cam]
     g = scratch.rows[ig]

@@ -261,8 +261,9 @@ def test_the_leak_consistent_fill_gains_on_saturated_colours(panel, mosaic) -> N
             res = dec.decode(raw)
         found[leaks] = score(res.stripes.column, res.depth, gt.column, gt.depth, gt.lit)[:2]
     (cov, cor), (cov0, _) = found["calibration"], found[NO_LEAKS]
-    # (320x240: 86-88 % with the leaks, 72-74 % without, for every order and both depths)
-    assert cov > 0.77 and cov > cov0 + 0.04 and cor > 0.99
+    # (320x240: 86.7-88.0 % with the leaks, 85.8-87.3 % without, for every order and both depths; 72-74 % without
+    # before the sign model's pixels kept its sign through the unmixing, lacking_fill.py, which recovers most of it)
+    assert cov > 0.77 and cov > cov0 + 0.003 and cor > 0.99
 
 
 def test_the_sign_models_median_is_the_median_of_any_window() -> None:
@@ -317,10 +318,11 @@ def test_the_leak_into_g_is_removed_at_the_neighbouring_columns_amplitude(mirror
     from app.decode.fast.bundles import NO_LACKING, Classifier, FrameTables
     from app.decode.fast.classify import classify_scratch
     from app.decode.fast.lacking_leak import leak_row
+    from app.decode.response_inverse import response_inverse
 
     W = 16
     lin = np.tile(np.arange(256, dtype=np.float32) * np.float32(0.75), (3, 1))
-    tables = FrameTables(lin, np.ones_like(lin), np.empty(0, np.int64))
+    tables = FrameTables(lin, np.ones_like(lin), np.empty(0, np.int64), response_inverse(lin))
     unmix = np.array([[-0.07, 1.02, -0.1], [-0.01, -0.08, 1.01]], np.float32)
     leak = (0, 2, 1, mirrored)  # (G pattern channel 0, camera B, held by the odd columns)
     classifier = Classifier(unmix, np.float32(2), np.float32(0.03), np.float32(0.03), 8, NO_LACKING, leak)
@@ -335,12 +337,13 @@ def test_the_leak_into_g_is_removed_at_the_neighbouring_columns_amplitude(mirror
     scratch.rows[0][:] = g
     scratch.rows[1][:] = 7.0
     n_flips = 0
-    if flipped:
+    e = (b_diff * np.float32(0.75)).astype(np.float32)
+    if flipped:  # (the sign model's pixels, with the camera differences lacking_row gave them)
         scratch.lacking.flips[:2] = (3, 5) if mirrored else (4, 6)
         n_flips = 2
+        e[scratch.lacking.flips[:2]] *= -1
+        scratch.lacking.flipped_c[:2] = e[scratch.lacking.flips[:2]]
     leak_row(f1, f2, 0, tables, classifier, scratch, n_flips)
-    e = (b_diff * np.float32(0.75)).astype(np.float32)
-    e[scratch.lacking.flips[:n_flips]] *= -1
     k = unmix[0, 2]
     want = g.copy()
     lacking = 0 if not mirrored else 1  # (W - 1 - 1 is even: mirrored, the odd columns lack B)
@@ -384,13 +387,43 @@ def test_a_gamma_cameras_lacking_channel_is_filled_in_linear_light(mosaic) -> No
             assert min(worst) > 2.0, worst  # (the codes' fill: what the response's fill corrects)
 
 
-def test_the_fill_in_linear_light_gains_on_saturated_colours(panel, monkeypatch) -> None:
+def test_the_fill_in_linear_light_keeps_saturated_colours(panel, monkeypatch) -> None:
     from app.decode.response_inverse import identity_inverse
 
     raw = [sample_mosaic(f, "RGGB") for f in panel[3]]
     cov, cor, _ = _decode(panel, raw, "RGGB")
     monkeypatch.setattr(FrameSetDecoder, "response", lambda self, dtype: identity_inverse(dtype))
     cov0, cor0, _ = _decode(panel, raw, "RGGB")
-    # (320x240: 86.3-87.4 % through the rig camera's gamma, 82.1-82.9 % in its codes, for every order and both
-    # depths)
-    assert cov > cov0 + 0.025 and cor > 0.995 and cor >= cor0 - 0.002
+    # (320x240: 86.7-86.9 % through the rig camera's gamma, 87.4-87.7 % in its codes at both depths; 82.1-82.9 % in
+    # its codes before the sign model's pixels kept their sign through the unmixing, lacking_fill.py: the fill in
+    # linear light now costs up to a point of coverage here, and is kept for its values, test above)
+    assert cov > cov0 - 0.01 and cor > 0.995 and cor >= cor0 - 0.002
+
+
+def test_a_flipped_fill_whose_unmixed_sign_the_leak_keeps_takes_the_models_sign() -> None:
+    """lacking_fill.model_sign_codes: where exchanging the frames' B values leaves the unmixed B difference's sign
+    (a small fill beside a strong G stripe, whose leak outweighs it), B's values move apart about their mean until
+    the unmixed difference has the other sign at the magnitude the exchange left; elsewhere nothing changes."""
+    from app.decode.fast.lacking_fill import model_sign_codes
+    from app.decode.response_inverse import response_inverse
+
+    lin = np.tile(np.arange(256, dtype=np.float32) * np.float32(0.75), (3, 1))
+    response = response_inverse(lin)
+    row = np.array([-0.01, -0.3, 1.01], np.float32)  # (the B pattern channel: camera G leaks into camera B)
+
+    def unmixed(a, b):
+        return float(sum(row[c] * (lin[c, b[c]] - lin[c, a[c]]) for c in range(3)))
+
+    a, b = (50, 40, 101), (50, 200, 99)  # B exchanged: frame 2 - frame 1 is G +160 codes, B -2 (before: +2)
+    before = unmixed((50, 40, 99), (50, 200, 101))
+    exchanged = unmixed(a, b)
+    assert before < 0 and exchanged < 0  # (the leak keeps the sign)
+    na, nb = model_sign_codes(a, b, 2, row, response, before)
+    moved = unmixed(na, nb)
+    assert moved > 0 and abs(moved - abs(exchanged)) < 1.0  # (to within a code of B, 0.76 in linear units)
+    assert na[:2] == a[:2] and nb[:2] == b[:2] and abs((na[2] + nb[2]) - (a[2] + b[2])) <= 1
+    # the exchange already gave the other sign, before had no sign, or B does not enter the row: as given
+    assert model_sign_codes(a, b, 2, row, response, -exchanged) == (a, b)
+    assert model_sign_codes(a, b, 2, row, response, 0.0) == (a, b)
+    no_b = np.array([-0.01, -0.3, 0.0], np.float32)
+    assert model_sign_codes(a, b, 2, no_b, response, before) == (a, b)

@@ -21,6 +21,7 @@ from app.decode.fast.bundles import (
 )
 from app.decode.fast.lacking_edges import NO_LACKING_EDGES
 from app.decode.primitives import append_sparse, append_where, fill_eight, run_bounds
+from app.decode.response_inverse import identity_inverse
 from app.decode.simd import gather8, spread8x2
 from app.decode.twoshot import TwoShotDecoder, two_shot_spec
 from app.patterns import two_shot_patterns
@@ -172,10 +173,13 @@ def test_gathered_link_pass_equals_the_loop():
         np.testing.assert_array_equal(g, w)
 
 
+IDENTITY_8BIT = identity_inverse(np.uint8)  # (no raw mosaic here: the inverse is not read)
+
+
 @njit(cache=False)
 def _fused_codes(f1, f2, lin, dlin, pk, unmix, t_abs, t_rel, block, code):
     scratch = classify.classify_scratch(unmix.shape[0], f1.shape[1], block)
-    tables = FrameTables(lin, dlin, pk)
+    tables = FrameTables(lin, dlin, pk, IDENTITY_8BIT)
     classifier = Classifier(unmix, t_abs, t_rel, t_rel, block, NO_LACKING, NO_LEAK)
     for y in range(f1.shape[0]):
         ahead = ((scratch.block_max, 0),)  # (a row to prefetch: any)
