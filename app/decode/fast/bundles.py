@@ -121,32 +121,26 @@ class EventScratch(NamedTuple):
 
 class LackingScratch(NamedTuple):
     """One row of the lacking channel's signs (lacking.py), W pixels: per block of 8 the max |dG| at 1 + b with
-    zero guards (g_max), the strong G signs (sign) and G's edges (edges); counts before each pixel (W + 1,
-    int32) of the pixels without a strong G sign (no_g), of the channel's columns without a sign (no_c) and of
-    its sign changes from the column two to the left (c_changes), and the channel's signs at its columns
-    (c_sign, int32); per usable run of constant G its edges (e0, e1), first and last pixel (x0, x1), first and
-    last column holding the channel (s0, s1), the sign changes seen there (changes, then its stripe count), its
-    length per seen stripe (ratio) and stripes per pixel (scale); the pixels whose sign flips (flips) and their
+    zero guards (g_max), the strong G signs (sign, int8); int8 flags per pixel, event or run (event, flag_a,
+    flag_b); rows per pixel, event or run of int32 (i32), float64 (f64), float32 (gx: G's thresholds per
+    pixel, then its differences at the events' pixels, and gx1 at the pixels after them) and int64 (n: a run's
+    stripe count); rows per column of one parity, int32 (cols); the pixels whose sign flips (flips) and their
     camera difference of the channel once flipped, float32 (flipped_c, lacking_fill.py); the channel's camera
-    differences, float32 (camera_c, lacking_leak.py)."""
+    differences, float32 (camera_c, lacking_leak.py). lacking.py names each row where it uses it; the rows per
+    pixel, event or run have room for the padding to whole vectors and for compressed stores."""
 
     g_max: np.ndarray
     sign: np.ndarray
-    edges: np.ndarray
-    no_g: np.ndarray
-    no_c: np.ndarray
-    c_changes: np.ndarray
-    c_sign: np.ndarray
-    e0: np.ndarray
-    e1: np.ndarray
-    x0: np.ndarray
-    x1: np.ndarray
-    s0: np.ndarray
-    s1: np.ndarray
-    changes: np.ndarray
-    ratio: np.ndarray
+    event: np.ndarray
+    flag_a: np.ndarray
+    flag_b: np.ndarray
+    i32: tuple
+    f64: tuple
+    gx: np.ndarray
+    gx1: np.ndarray
+    cols: tuple
+    n: np.ndarray
     flips: np.ndarray
-    scale: np.ndarray
     camera_c: np.ndarray
     flipped_c: np.ndarray
 

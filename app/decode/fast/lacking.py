@@ -25,6 +25,7 @@ from numba import njit
 import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
 from app.decode.fast.bundles import NO_LACKING, Classifier, ClassifyScratch, FrameTables, LackingScratch
 from app.decode.fast.lacking_fill import model_sign_codes
+from app.decode.primitives import append_where, gather
 from core.mosaic import CHANNEL, site_codes
 
 G_STRONG = 0.05  # a G sign counts at |dG| of this share of its local maximum (three 8-pixel blocks)
@@ -37,6 +38,7 @@ MAX_WIDTH = 3.2
 # MAX_DISSENT where there are at least MIN_VOTERS (docs/performance.md, "One dissenting column")
 MAX_DISSENT = 1
 MIN_VOTERS = 3
+SPAN = 16  # columns of one parity a word of bits covers (a run of more is checked in a loop of its own)
 
 
 def lacking_channel(channels: str, mosaic: str | None) -> tuple[int, int, int]:
@@ -56,24 +58,52 @@ def lacking_channel(channels: str, mosaic: str | None) -> tuple[int, int, int]:
 @njit(cache=True, nogil=True, error_model="numpy")
 def lacking_scratch(W: int) -> LackingScratch:
     """The buffers lacking_flips writes, for rows of W pixels."""
+    P = W + 24  # (per pixel, event or run, with room for the padding to whole vectors and compressed stores)
+    H = W // 2 + 4 * SPAN  # (per column of one parity, with room for the columns read on from any)
     return LackingScratch(
         np.zeros((W + 7) // 8 + 2, np.float32),
         np.zeros(W, np.int8),
-        np.empty(W, np.float64),
-        np.zeros(W + 1, np.int32),
-        np.zeros(W + 1, np.int32),
-        np.zeros(W + 1, np.int32),
-        np.zeros(W, np.int32),
-        np.empty(W, np.float64),
-        np.empty(W, np.float64),
-        np.empty(W, np.int64),
-        np.empty(W, np.int64),
-        np.empty(W, np.int64),
-        np.empty(W, np.int64),
-        np.empty(W, np.int64),
-        np.empty(W, np.float64),
-        np.empty(W, np.int64),
-        np.empty(W, np.float64),
+        np.zeros(P, np.int8),
+        np.zeros(P, np.int8),
+        np.zeros(P, np.int8),
+        (
+            np.zeros(P, np.int32),
+            np.zeros(P, np.int32),
+            np.zeros(P, np.int32),
+            np.zeros(P, np.int32),
+            np.zeros(P, np.int32),
+            np.zeros(P, np.int32),
+            np.zeros(P, np.int32),
+            np.zeros(P, np.int32),
+            np.zeros(P, np.int32),
+            np.zeros(P, np.int32),
+            np.zeros(P, np.int32),
+            np.zeros(P, np.int32),
+            np.zeros(P, np.int32),
+        ),
+        (
+            np.zeros(P, np.float64),
+            np.zeros(P, np.float64),
+            np.zeros(P, np.float64),
+            np.zeros(P, np.float64),
+            np.zeros(P, np.float64),
+            np.zeros(P, np.float64),
+            np.zeros(P, np.float64),
+            np.zeros(P, np.float64),
+        ),
+        np.zeros(P, np.float32),
+        np.zeros(P, np.float32),
+        (
+            np.zeros(H, np.int32),
+            np.zeros(H, np.int32),
+            np.zeros(H, np.int32),
+            np.zeros(H, np.int32),
+            np.zeros(H, np.int32),
+            np.zeros(H, np.int32),
+            np.zeros(H, np.int32),
+        ),
+        np.zeros(P, np.int64),
+        np.zeros(P, np.int64),
         np.empty(W, np.float32),
         np.empty(W, np.float32),
     )
@@ -141,17 +171,31 @@ def lacking_flips(g: np.ndarray, c: np.ndarray, cx: int, s: LackingScratch) -> i
     many.
 
     Stripe edges fall every two or three pixels, so a branch per pixel or per run would be mispredicted about
-    half the time: the edges and the runs are compacted by a store at every step and a count that advances by
-    the condition, the medians are a sorting network and the flips a store per pixel of the channel's parity."""
+    half the time, and a loop that reads at computed indices beside its stores stays scalar: every stage is a
+    loop of a fixed sequence of operations per pixel, column, event or run over plain rows (vectorised), the
+    values a stage reads at computed indices are gathered into rows before it (primitives.gather), the events
+    and the runs are compacted by compressed stores (append_where), the medians are a sorting network, and a
+    run's columns are taken as words of bits, sixteen (its checks) or eight (its vote and flips) at a time (the
+    few longer runs finish in loops over them alone)."""
+    W = g.shape[0]
+    if W < 2:
+        return 0
+    _g_signs(g, s.g_max, s.gx, s.sign)
+    _channel_columns(c, cx, s.cols)
+    ne = _events(g, s)
+    nr = _runs(s, ne, cx, W)
+    if nr == 0:
+        return 0
+    _stripe_counts(s, nr)
+    return _flips(s, nr, cx, W)
+
+
+@njit(inline="always")
+def _g_signs(g, bmax, thr, sg):
+    """sg: G's strong signs, from the maxima of |dG| per block of 8 (into bmax, at 1 + b with zero guards) and
+    their thresholds per pixel (thr, 8 per block)."""
     W = g.shape[0]
     nb = (W + 7) // 8
-    bmax = s.g_max
-    sg = s.sign
-    edges = s.edges
-    at = s.flips  # (the G edges' pixels first; the flips overwrite them once the edges are located)
-    no_g, no_c, c_changes, c_sign = s.no_g, s.no_c, s.c_changes, s.c_sign
-    r_e0, r_e1, r_x0, r_x1, r_s0, r_s1, r_n, ratio = s.e0, s.e1, s.x0, s.x1, s.s0, s.s1, s.changes, s.ratio
-    r_scale = s.scale
     bmax[0] = 0.0
     bmax[nb + 1] = 0.0
     # whole blocks with loops of a fixed 8 (unrolled and vectorised), the last part-block after them
@@ -166,119 +210,348 @@ def lacking_flips(g: np.ndarray, c: np.ndarray, cx: int, s: LackingScratch) -> i
         for x in range(8 * k, W):
             m = max(m, abs(g[x]))
         bmax[k + 1] = m
+    # each block's threshold spread over its pixels, then the signs in one loop over the pixels
     strong = np.float32(G_STRONG)
-    for k in range(full):
-        thr = _g_threshold(bmax[k], bmax[k + 1], bmax[k + 2], strong)
+    for k in range(nb):
+        t = _g_threshold(bmax[k], bmax[k + 1], bmax[k + 2], strong)
         for j in range(8):
-            sg[8 * k + j] = _g_sign(g[8 * k + j], thr)
-    for k in range(full, nb):
-        thr = _g_threshold(bmax[k], bmax[k + 1], bmax[k + 2], strong)
-        for x in range(8 * k, W):
-            sg[x] = _g_sign(g[x], thr)
-    zeros = 0
+            thr[8 * k + j] = t
     for x in range(W):
-        no_g[x] = zeros
-        zeros += sg[x] == 0
-    no_g[W] = zeros
-    # the channel's columns: their signs (NaN and 0: none), and the counts the runs below read in one step each
-    bad = 0
-    changes = 0
-    prev = 0
-    for x in range(W):
-        no_c[x] = bad
-        c_changes[x] = changes
-        if (x & 1) == cx:
-            v = c[x]
-            sign = 1 if v > 0 else -1
-            bad += not (v > 0 or v < 0)
-            changes += (prev != 0) & (sign != prev)
-            prev = sign
-            c_sign[x] = sign
-    no_c[W] = bad
-    c_changes[W] = changes
-    ne = 0
+        sg[x] = _g_sign(g[x], thr[x])
+
+
+@njit(inline="always")
+def _channel_columns(c, cx, cols):
+    """Per column holding the channel (index k: column 2k + cx): its sign (+1, else -1: NaN and 0 too), whether
+    it has none (NaN, 0), the bits m < 8 of whether column k + m's sign is +1, and the word of SPAN bits m of
+    whether column k + m has no sign, with at SPAN + m whether k + m's sign differs from k + m - 1's. Per
+    column lacking it (index l: column 2l + 1 - cx): its sign (0 for NaN and 0) and the bits m of whether c is
+    > 0 at column l + m, and at 8 + m whether it is < 0."""
+    c_sign, no_c, words, c_bits, l_sign, l_bits, spare = cols
+    W = c.shape[0]
+    nk = (W - cx + 1) // 2
+    nl = (W - (1 - cx) + 1) // 2
+    # (pairs of columns in one loop: both values read as the interleaved pair, each stored to its own row)
+    for k in range(W // 2):
+        a = c[2 * k]
+        b = c[2 * k + 1]
+        v = b if cx else a
+        u = a if cx else b
+        c_sign[k] = np.int32(1) if v > 0 else np.int32(-1)
+        no_c[k] = np.int32(not ((v > 0) | (v < 0)))
+        l_sign[k] = np.int32(u > 0) - np.int32(u < 0)
+    if W & 1:  # (the last column, even)
+        v = c[W - 1]
+        if cx == 0:
+            c_sign[nk - 1] = np.int32(1) if v > 0 else np.int32(-1)
+            no_c[nk - 1] = np.int32(not ((v > 0) | (v < 0)))
+        else:
+            l_sign[nl - 1] = np.int32(v > 0) - np.int32(v < 0)
+    for k in range(nk, nk + 3 * SPAN):
+        c_sign[k] = -1
+        no_c[k] = 0
+    for k in range(nl, nl + 3 * SPAN):
+        l_sign[k] = 0
+    # the words by doubling: after the step of d, bit m of entry k holds column k + m for m < 2d (each step over
+    # every entry the later steps read, so that none is left from an earlier row)
+    words[0] = no_c[0]
+    for k in range(1, nk + 2 * SPAN):
+        words[k] = no_c[k] | (np.int32((c_sign[k] != c_sign[k - 1]) & (k < nk)) << np.int32(SPAN))
+    src, dst = words, spare
+    d = 1
+    while d < SPAN:
+        for k in range(nk + SPAN):
+            dst[k] = src[k] | (src[k + d] << np.int32(d))
+        src, dst = dst, src
+        d *= 2
+    for k in range(nk + 1):
+        bits = np.int32(0)
+        for m in range(8):
+            bits |= np.int32(c_sign[k + m] > 0) << np.int32(m)
+        c_bits[k] = bits
+    for k in range(nl + 1):
+        bits = np.int32(0)
+        for m in range(8):
+            v = l_sign[k + m]
+            bits |= (np.int32(v > 0) << np.int32(m)) | (np.int32(v < 0) << np.int32(8 + m))
+        l_bits[k] = bits
+
+
+@njit(inline="always")
+def _whole(n):
+    """n rounded up to whole vectors of 8 (the loops over events and runs run on over padding of valid
+    indices, so they have no scalar remainder)."""
+    return (n + 7) & ~7
+
+
+@njit(inline="always")
+def _events(g, s):
+    """The events of the row: the G edges (opposite strong signs at x and x + 1) and the pixels without a strong
+    G sign, compacted into s.i32[0] (their pixel), with whether each is an edge (s.i32[2]) and its position
+    (s.f64[0]: the edge's zero crossing, a pixel without a sign its own pixel). A run of one G sign is a pair
+    of consecutive events that are both edges. Returns how many."""
+    sg, ev = s.sign, s.event
+    at, strong, is_edge = s.i32[0], s.i32[1], s.i32[2]
+    epos = s.f64[0]
+    gx, gx1 = s.gx, s.gx1
+    W = g.shape[0]
     for x in range(W - 1):
-        at[ne] = x
-        ne += sg[x] * sg[x + 1] < 0
-    for i in range(ne):
-        x = at[i]
-        edges[i] = x + g[x] / (g[x] - g[x + 1])
-    # the runs of one G sign between consecutive edges that the model can use (every index read stays inside
-    # the rows whatever the run, so the checks need no branch)
-    nr = 0
-    for i in range(ne - 1):
-        e0 = edges[i]
-        e1 = edges[i + 1]
-        x0 = int(np.floor(e0)) + 1
-        x1 = int(np.floor(e1))
-        # the channel's columns from one pixel before the first G edge to one after the second (it is constant
-        # across a G edge, so those see the run's end stripes)
-        s0 = max(int(np.ceil(e0 - 1.0)), 0)
-        s1 = min(int(np.floor(e1 + 1.0)), W - 1)
-        s0 += (s0 & 1) != cx
-        s1 -= (s1 & 1) != cx
-        # one G sign throughout (no pixel without one: two opposite neighbours would be an edge between e0, e1),
-        # and a sign at each of the channel's columns
-        ok = (x1 >= x0) & (no_g[x1 + 1] == no_g[x0]) & (s1 >= s0 + 2) & (no_c[s1 + 1] == no_c[s0])
-        r_e0[nr] = e0
-        r_e1[nr] = e1
-        r_x0[nr] = x0
-        r_x1[nr] = x1
-        r_s0[nr] = s0
-        r_s1[nr] = s1
-        flips = c_changes[s1 + 1] - c_changes[s0 + 1]  # (the changes from s0 to s1)
-        r_n[nr] = flips
-        ratio[nr] = (e1 - e0) / (flips + 1)
-        nr += ok
-    if nr == 0:
-        return 0
-    # per run, in loops over the runs (each a fixed sequence of operations: vectorised, gathers included): the
-    # local stripe width (one median per group of runs), the stripe count n (into r_n) and n over the span
-    w = 0.0
-    for i in range(nr):
-        if i % GROUP == 0:
-            centre = min(i + GROUP // 2, nr - 1)
-            w = _median13(ratio, max(0, centre - WINDOW), min(nr, centre + WINDOW + 1))
-        span = r_e1[i] - r_e0[i]
-        seen = r_n[i] + 1
-        n = seen + 2 * max(0, int(np.round((span / w - seen) / 2.0)))
-        r_n[i] = n
-        r_scale[i] = n / span
-    # per run, in one loop (its values stay in registers): the phase, the channel's columns' sign against the
-    # model's alternation, used where all of them agree but at most `dissent` (each has a sign here, so the sum of
-    # the agreements is their count less twice the dissenting ones, or minus that); then at the run's pixels
-    # lacking the channel (the runs' pixel ranges are disjoint) whether the channel's sign differs from the model
-    flip = sg  # (sg is free again)
+        a = sg[x]
+        b = sg[x + 1]
+        ev[x] = (a == 0) | ((b != 0) & (a != b))
     for x in range(W):
-        flip[x] = 0
-    for i in range(nr):
-        e0, scale, n, s0, s1, x1 = r_e0[i], r_scale[i], r_n[i], r_s0[i], r_s1[i], r_x1[i]
-        vote = 0
-        for q in range(s0, s1 + 1, 2):
-            vote += _alternating(q, e0, scale, n) * c_sign[q]
-        width = (r_e1[i] - e0) / n
-        voters = (s1 - s0) // 2 + 1
-        dissent = MAX_DISSENT if voters >= MIN_VOTERS else 0
-        use = (MIN_WIDTH <= width) & (width <= MAX_WIDTH) & (abs(vote) >= voters - 2 * dissent)
-        phase = use * (1 if vote > 0 else -1)  # (0 for a run not used)
-        first = r_x0[i] + ((r_x0[i] & 1) == cx)
-        for q in range(first, x1 + 1, 2):
-            flip[q] = _disagrees(q, c, W, phase, e0, scale, n)
+        strong[x] = sg[x] != 0
+    ne = append_where(ev, W - 1, at)
+    pad = _whole(ne) + 8
+    for j in range(ne, pad):
+        at[j] = 0
+    gather(gx, g, at, pad)
+    gather(gx1, g[1:], at, pad)
+    gather(is_edge, strong, at, pad)
+    for j in range(ne, pad):
+        is_edge[j] = 0
+    for j in range(pad):
+        # (the expression of the differences' zero crossing, in its types: float32, then float64)
+        epos[j] = at[j] + gx[j] / (gx[j] - gx1[j]) if is_edge[j] != 0 else np.float64(at[j])
+    return ne
+
+
+@njit(inline="always")
+def _run_bounds(e0, e1, cx, W):
+    """A run's first and last pixel (x0, x1) and the indices (k0, k1) of the first and last column holding the
+    channel from one pixel before its first edge e0 to one after its second e1 (it is constant across a G edge,
+    so those see the run's end stripes); every index stays inside the row whatever e0 <= e1 in [0, W - 1)."""
+    x0 = int(np.floor(e0)) + 1
+    x1 = int(np.floor(e1))
+    s0 = max(int(np.ceil(e0 - 1.0)), 0)
+    s1 = min(int(np.floor(e1 + 1.0)), W - 1)
+    s0 += (s0 & 1) != cx
+    s1 -= (s1 & 1) != cx
+    return x0, x1, (s0 - cx) >> 1, (s1 - cx) >> 1
+
+
+@njit(inline="always")
+def _runs(s, ne, cx, W):
+    """The runs of one G sign between consecutive events that the model can use (one G sign throughout, and a
+    sign at each of its three or more columns holding the channel): per run its first event (s.i32[11]), its
+    edges (s.f64[3], s.f64[4]), the sign changes its columns see (s.i32[12]) and its length per seen stripe
+    (s.f64[2]). Returns how many."""
+    c_sign, no_c, words = s.cols[0], s.cols[1], s.cols[2]  # (four doublings end in the row they start in)
+    is_edge, k0s, spans, w0, cand_changes, long_pairs = s.i32[2], s.i32[3], s.i32[4], s.i32[6], s.i32[10], s.i32[9]
+    run, changes = s.i32[11], s.i32[12]
+    epos, cand_ratio, ratio, e0s, e1s = s.f64[0], s.f64[1], s.f64[2], s.f64[3], s.f64[4]
+    pre, ok, long = s.flag_a, s.event, s.flag_b
+    nc = ne - 1
+    whole = _whole(max(nc, 0))
+    for j in range(whole):
+        e0 = epos[j]
+        e1 = epos[j + 1]
+        x0, x1, k0, k1 = _run_bounds(e0, e1, cx, W)
+        k0s[j] = k0
+        spans[j] = k1 - k0 + 1
+        pre[j] = (is_edge[j] != 0) & (is_edge[j + 1] != 0) & (x1 >= x0) & (k1 >= k0 + 1)
+    # the pair's columns k0 .. k1 from the word at k0 (those of more than SPAN columns in a loop of their own)
+    gather(w0, words, k0s, whole)
+    for j in range(whole):
+        span = spans[j]
+        cut = min(max(span, 0), SPAN)
+        w = w0[j]
+        flips = _bit_count16((w >> np.int32(SPAN + 1)) & ((np.int32(1) << np.int32(max(cut - 1, 0))) - np.int32(1)))
+        ok[j] = pre[j] & ((w & ((np.int32(1) << np.int32(cut)) - np.int32(1))) == 0)
+        long[j] = pre[j] & (span > SPAN)
+        cand_changes[j] = flips
+        cand_ratio[j] = (epos[j + 1] - epos[j]) / (flips + 1)
+    n_long = append_where(long, nc, long_pairs) if nc > 0 else 0
+    for t in range(n_long):
+        j = long_pairs[t]
+        k0 = k0s[j]
+        k1 = k0 + spans[j] - 1
+        bad = 0
+        flips = 0
+        for k in range(k0, k1 + 1):
+            bad += no_c[k]
+            flips += (k > k0) & (c_sign[k] != c_sign[k - 1])
+        ok[j] = bad == 0
+        cand_changes[j] = flips
+        cand_ratio[j] = (epos[j + 1] - epos[j]) / (flips + 1)
+    nr = append_where(ok, nc, run) if nc > 0 else 0
+    pad = _whole(nr) + 8
+    for i in range(nr, pad):
+        run[i] = 0
+    gather(ratio, cand_ratio, run, pad)
+    gather(changes, cand_changes, run, pad)
+    gather(e0s, epos, run, pad)
+    gather(e1s, epos[1:], run, pad)
+    # per run the sign bits of its first eight columns of either kind (_channel_columns), from its first, k0
+    k0r, held, lacking = s.i32[5], s.i32[3], s.i32[4]
+    gather(k0r, k0s, run, pad)
+    gather(held, s.cols[3], k0r, pad)
+    gather(lacking, s.cols[5][cx:], k0r, pad)
+    return nr
+
+
+@njit(inline="always")
+def _stripe_counts(s, nr):
+    """Per run the local stripe width (the median of the ratios of the runs around its group of GROUP: s.f64[5]
+    per run), its stripe count n (the changes seen, plus the pairs of them missed: s.n) and n over its span
+    (s.f64[6])."""
+    ratio, e0s, e1s, wr, scale, width = s.f64[2], s.f64[3], s.f64[4], s.f64[5], s.f64[6], s.f64[7]
+    changes, r_n = s.i32[12], s.n
+    ng = (nr + GROUP - 1) // GROUP
+    # groups whose window is whole (13 runs from 4k - 4, the median the 7th) read it at fixed offsets
+    inner = max(0, (nr - WINDOW - GROUP // 2 - 1) // GROUP)  # (groups 1 .. inner)
+    for k in range(min(ng, 1)):
+        width[k] = _median(ratio, k, nr)
+    for k in range(inner):
+        b = GROUP * k
+        width[k + 1] = _network13(
+            ratio[b],
+            ratio[b + 1],
+            ratio[b + 2],
+            ratio[b + 3],
+            ratio[b + 4],
+            ratio[b + 5],
+            ratio[b + 6],
+            ratio[b + 7],
+            ratio[b + 8],
+            ratio[b + 9],
+            ratio[b + 10],
+            ratio[b + 11],
+            ratio[b + 12],
+        )[6]
+    for k in range(max(inner + 1, 1), ng):
+        width[k] = _median(ratio, k, nr)
+    for k in range(ng):
+        for t in range(GROUP):
+            wr[GROUP * k + t] = width[k]
+    for i in range(GROUP * ng, _whole(nr)):
+        wr[i] = 1.0  # (the padding's runs: any finite width)
+    for i in range(_whole(nr)):
+        span = e1s[i] - e0s[i]
+        seen = np.int64(changes[i]) + 1
+        n = seen + 2 * max(0, int(np.round((span / wr[i] - seen) / 2.0)))
+        r_n[i] = n
+        scale[i] = n / span
+
+
+@njit(inline="always")
+def _median(ratio, k, nr):
+    """The local stripe width of group k (its runs GROUP k..): the median of the ratios of the runs within WINDOW
+    of the group's middle."""
+    centre = min(GROUP * k + GROUP // 2, nr - 1)
+    return _median13(ratio, max(0, centre - WINDOW), min(nr, centre + WINDOW + 1))
+
+
+@njit(inline="always")
+def _flips(s, nr, cx, W):
+    """Per run the phase, the channel's columns' sign against the model's alternation, used where all of them
+    agree but at most `dissent` (each has a sign here, so the sum of the agreements is their count less twice
+    the dissenting ones, or minus that); then at the run's pixels lacking the channel (the runs' pixel ranges
+    are disjoint and increasing) whether the channel's sign differs from the model: into s.flips. A run's
+    columns from its first holding the channel, s0, alternate: those holding it at s0 + 2m, those lacking it at
+    s0 + 1 + 2m (the first at or after its first pixel). Runs of at most eight of each (all but a few in a
+    hundred) are taken in one loop, as words of bits m; the others in a loop over them alone."""
+    e0s, e1s, scale = s.f64[3], s.f64[4], s.f64[6]
+    held, lacking, masks, votes, emitted = s.i32[3], s.i32[4], s.i32[6], s.i32[7], s.i32[8]
+    r_n = s.n
+    is_long, emit = s.flag_a, s.flag_b
+    for i in range(_whole(nr)):
+        e0 = e0s[i]
+        e1 = e1s[i]
+        _, x1, k0, k1 = _run_bounds(e0, e1, cx, W)
+        sc, n = scale[i], r_n[i]
+        top = np.float64(n - 1)
+        s0 = np.float64(2 * k0 + cx)
+        odd_held = np.int32(0)  # (bit m: the model's stripe at s0 + 2m is odd, its sign -1)
+        odd_lacking = np.int32(0)  # (at s0 + 1 + 2m)
+        for m in range(8):
+            odd_held |= _odd(s0 + 2 * m, e0, sc, top) << np.int32(m)
+            odd_lacking |= _odd(s0 + (2 * m + 1), e0, sc, top) << np.int32(m)
+        voters = k1 - k0 + 1
+        lacking_n = max((x1 - 2 * k0 - cx - 1) // 2 + 1, 0)
+        long = (voters > 8) | (lacking_n > 8)
+        # the vote: agreeing columns count +1 (the channel's sign bit is set where the model's stripe is even)
+        agree = (odd_held ^ held[i]) & ((np.int32(1) << np.int32(min(voters, 8))) - np.int32(1))
+        vote = 2 * _bit_count8(agree) - min(voters, 8)
+        bits = _lacking_bits(odd_lacking, _phase(vote, voters, (e1 - e0) / n), lacking[i], lacking_n)
+        masks[i] = bits | (odd_lacking << np.int32(8))
+        votes[i] = vote
+        is_long[i] = long
+        emit[i] = (bits != 0) | long
+    c_sign, l_sign = s.cols[0], s.cols[4]
+    flips = s.flips
     n_flip = 0
-    for x in range(1 - cx, W, 2):
-        at[n_flip] = x
-        n_flip += flip[x]
+    n_emit = append_where(emit, nr, emitted)
+    for t in range(n_emit):
+        i = emitted[t]
+        e0 = e0s[i]
+        _, x1, k0, k1 = _run_bounds(e0, e1s[i], cx, W)
+        first = 2 * k0 + cx + 1
+        bits = masks[i] & np.int32(255)
+        phase = 0
+        if is_long[i] != 0:  # (more than eight columns of either kind: the vote completed, then phase and bits)
+            sc, n = scale[i], r_n[i]
+            vote = np.int64(votes[i])
+            for k in range(k0 + 8, k1 + 1):
+                vote += _alternating(2 * k + cx, e0, sc, n) * c_sign[k]
+            phase = _phase(vote, k1 - k0 + 1, (e1s[i] - e0) / n)
+            lacking_n = max((x1 - first) // 2 + 1, 0)
+            bits = _lacking_bits(masks[i] >> np.int32(8), phase, lacking[i], lacking_n)
+        for m in range(8):
+            flips[n_flip] = first + 2 * m
+            n_flip += (bits >> m) & 1
+        for q in range(first + 16, x1 + 1, 2):  # (none unless long)
+            p = phase * _alternating(q, e0, scale[i], r_n[i])
+            flips[n_flip] = q
+            n_flip += (p != 0) & (p != l_sign[q >> 1])
     return n_flip
 
 
 @njit(inline="always")
-def _disagrees(q, c, W, phase, e0, scale, n):
-    """Whether the channel's sign at column q (read inside the row) differs from a run's model (phase 0: the
-    run is not used, no)."""
-    p = phase * _alternating(q, e0, scale, n)
-    v = c[min(q, W - 1)]
-    agrees = ((p > 0) & (v > 0)) | ((p < 0) & (v < 0))  # (NaN: neither)
-    return (p != 0) & (not agrees)
+def _phase(vote, voters, width):
+    """A run's phase: +1 (the even stripes carry the channel's +1) or -1 by its columns' vote where the model
+    takes the run (its stripes' width in range, and all of its columns agreeing but at most `dissent`), else 0.
+    (Each column has a sign here, so the sum of the agreements is their count less twice the dissenting ones,
+    or minus that.)"""
+    dissent = MAX_DISSENT if voters >= MIN_VOTERS else 0
+    use = (MIN_WIDTH <= width) & (width <= MAX_WIDTH) & (abs(vote) >= voters - 2 * dissent)
+    return use * (1 if vote > 0 else -1)
+
+
+@njit(inline="always")
+def _lacking_bits(odd, phase, signs, count):
+    """The bits m < min(count, 8) of whether the channel's sign at a run's m-th column lacking it differs from
+    the model's (odd: bit m where the model's stripe there is odd; signs: bit m where c > 0 there, 8 + m where
+    c < 0); none for phase 0."""
+    plus = (~odd if phase > 0 else odd) & np.int32(255)  # (the model's sign +1)
+    agrees = (plus & signs) | (~plus & (signs >> np.int32(8)))
+    bits = ~agrees & ((np.int32(1) << np.int32(min(count, 8))) - np.int32(1))
+    return bits if phase != 0 else np.int32(0)
+
+
+@njit(inline="always")
+def _odd(x, e0, scale, top):
+    """1 where the stripe holding pixel x (as float64) is odd, of the stripes _alternating counts (top: their
+    count less one), else 0: its index clamped as a float64, so that the conversion is to int32 (exact: every
+    step is, and the clamp to top commutes with the truncation)."""
+    return np.int32(min(max((x - e0) * scale, 0.0), top)) & np.int32(1)
+
+
+@njit(inline="always")
+def _bit_count16(v):
+    """The set bits of a 16-bit value (int32)."""
+    v = v - ((v >> np.int32(1)) & np.int32(0x5555))
+    v = (v & np.int32(0x3333)) + ((v >> np.int32(2)) & np.int32(0x3333))
+    v = (v + (v >> np.int32(4))) & np.int32(0x0F0F)
+    return (v + (v >> np.int32(8))) & np.int32(0x1F)
+
+
+@njit(inline="always")
+def _bit_count8(v):
+    """The set bits of an 8-bit value (int32)."""
+    v = v - ((v >> np.int32(1)) & np.int32(0x55))
+    v = (v & np.int32(0x33)) + ((v >> np.int32(2)) & np.int32(0x33))
+    return (v + (v >> np.int32(4))) & np.int32(0x0F)
 
 
 @njit(inline="always")
@@ -312,6 +585,20 @@ def _median13(v, lo, hi):
     v4, v5, v6, v7 = _pad(v, lo, m, 4, last), _pad(v, lo, m, 5, last), _pad(v, lo, m, 6, last), _pad(v, lo, m, 7, last)
     v8, v9, v10 = _pad(v, lo, m, 8, last), _pad(v, lo, m, 9, last), _pad(v, lo, m, 10, last)
     v11, v12 = _pad(v, lo, m, 11, last), _pad(v, lo, m, 12, last)
+    v0, v1, v2, v3, v4, v5, v6, v7, v8, v9, v10, v11, v12 = _network13(
+        v0, v1, v2, v3, v4, v5, v6, v7, v8, v9, v10, v11, v12
+    )
+    k = m // 2
+    upper = _pick(k, v0, v1, v2, v3, v4, v5, v6, v7, v8, v9, v10, v11, v12)
+    lower = _pick(k - 1, v0, v1, v2, v3, v4, v5, v6, v7, v8, v9, v10, v11, v12)
+    return upper if m & 1 else 0.5 * (lower + upper)
+
+
+@njit(inline="always")
+def _network13(v0, v1, v2, v3, v4, v5, v6, v7, v8, v9, v10, v11, v12):
+    """The 13 values in increasing order: a network of 48 compare-exchanges (Batcher's odd-even merge sort of
+    16, less the comparators with the last three, which a padding of +inf never moves), branch-free and in
+    registers."""
     (v0, v1), (v2, v3) = _cas(v0, v1), _cas(v2, v3)
     (v0, v2), (v1, v3) = _cas(v0, v2), _cas(v1, v3)
     (v1, v2), (v4, v5), (v6, v7) = _cas(v1, v2), _cas(v4, v5), _cas(v6, v7)
@@ -333,10 +620,7 @@ def _median13(v, lo, hi):
     (v7, v11), (v3, v5) = _cas(v7, v11), _cas(v3, v5)
     (v7, v9), (v1, v2), (v3, v4), (v5, v6) = _cas(v7, v9), _cas(v1, v2), _cas(v3, v4), _cas(v5, v6)
     (v7, v8), (v9, v10), (v11, v12) = _cas(v7, v8), _cas(v9, v10), _cas(v11, v12)
-    k = m // 2
-    upper = _pick(k, v0, v1, v2, v3, v4, v5, v6, v7, v8, v9, v10, v11, v12)
-    lower = _pick(k - 1, v0, v1, v2, v3, v4, v5, v6, v7, v8, v9, v10, v11, v12)
-    return upper if m & 1 else 0.5 * (lower + upper)
+    return v0, v1, v2, v3, v4, v5, v6, v7, v8, v9, v10, v11, v12
 
 
 @njit(inline="always")
