@@ -119,27 +119,79 @@ class EventScratch(NamedTuple):
     right: np.ndarray
 
 
+class ChannelColumns(NamedTuple):
+    """The lacking channel's row by column of one parity (lacking._channel_columns), int32. Per column holding it
+    (index k: column 2k + cx): its sign (+1, else -1: NaN and 0 too), whether it has none (no_sign), the word of
+    SPAN bits m of whether column k + m has no sign with at SPAN + m whether k + m's sign differs from k + m - 1's
+    (words; spare: the other half of its doublings), and the bits m < 8 of whether column k + m's sign is +1
+    (sign_bits). Per column lacking it (index l: column 2l + 1 - cx): its sign (lacking_sign, 0 for NaN and 0)
+    and the bits m of whether it is > 0 at column l + m, at 8 + m whether < 0 (lacking_bits)."""
+
+    sign: np.ndarray
+    no_sign: np.ndarray
+    words: np.ndarray
+    sign_bits: np.ndarray
+    lacking_sign: np.ndarray
+    lacking_bits: np.ndarray
+    spare: np.ndarray
+
+
 class LackingScratch(NamedTuple):
-    """One row of the lacking channel's signs (lacking.py), W pixels: per block of 8 the max |dG| at 1 + b with
-    zero guards (g_max), the strong G signs (sign, int8); int8 flags per pixel, event or run (event, flag_a,
-    flag_b); rows per pixel, event or run of int32 (i32), float64 (f64), float32 (gx: G's thresholds per
-    pixel, then its differences at the events' pixels, and gx1 at the pixels after them) and int64 (n: a run's
-    stripe count); rows per column of one parity, int32 (cols); the pixels whose sign flips (flips) and their
-    camera difference of the channel once flipped, float32 (flipped_c, lacking_fill.py); the channel's camera
-    differences, float32 (camera_c, lacking_leak.py). lacking.py names each row where it uses it; the rows per
-    pixel, event or run have room for the padding to whole vectors and for compressed stores."""
+    """One row of the lacking channel's signs (lacking.py), W pixels; the rows per pixel, event or run have room
+    for the padding to whole vectors and for compressed stores. Per block of 8 the max |dG| at 1 + b with zero
+    guards (g_max); per pixel G's threshold (g_threshold), its strong sign (sign, int8) and int32 flag (strong),
+    whether an event is there (event, int8: a G edge at x, x + 1 or no strong sign at x). Per event
+    (lacking._events): its pixel (event_pixel), whether it is an edge (is_edge), G's difference there and at the
+    next pixel (g_at, g_next, float32), its position (event_position, float64). Per pair of consecutive events,
+    a candidate run: its first column index (first_column), column count (column_span), the word of its first
+    column (first_word), the sign changes and length per seen stripe (candidate_changes, candidate_ratio), int8
+    flags of its pre-check, use and length (candidate, usable, long_candidate) and the candidates of more than
+    SPAN columns (long_candidates). Per usable run: its first event (run_event), first column index
+    (run_first_column), sign changes (run_changes), edges (run_e0, run_e1), length per seen stripe (run_ratio),
+    local stripe width (local_width), stripe count (run_stripes, int64), stripes per pixel (run_scale), the sign
+    bits of its first eight columns of either kind (held_bits, lacking_bits), its vote (votes), flip masks
+    (flip_masks) and flags (long_run, emit), and the runs emitted (emitted); per group of lacking.GROUP runs the
+    median of their lengths per seen stripe (group_width). The channel's columns (ChannelColumns); the pixels
+    whose sign flips (flips) and their camera difference of the channel once flipped, float32 (flipped_c,
+    lacking_fill.py); the channel's camera differences, float32 (camera_c, lacking_leak.py)."""
 
     g_max: np.ndarray
+    g_threshold: np.ndarray
     sign: np.ndarray
+    strong: np.ndarray
     event: np.ndarray
-    flag_a: np.ndarray
-    flag_b: np.ndarray
-    i32: tuple
-    f64: tuple
-    gx: np.ndarray
-    gx1: np.ndarray
-    cols: tuple
-    n: np.ndarray
+    event_pixel: np.ndarray
+    is_edge: np.ndarray
+    g_at: np.ndarray
+    g_next: np.ndarray
+    event_position: np.ndarray
+    first_column: np.ndarray
+    column_span: np.ndarray
+    first_word: np.ndarray
+    candidate_changes: np.ndarray
+    candidate_ratio: np.ndarray
+    candidate: np.ndarray
+    usable: np.ndarray
+    long_candidate: np.ndarray
+    long_candidates: np.ndarray
+    run_event: np.ndarray
+    run_first_column: np.ndarray
+    run_changes: np.ndarray
+    run_e0: np.ndarray
+    run_e1: np.ndarray
+    run_ratio: np.ndarray
+    local_width: np.ndarray
+    run_stripes: np.ndarray
+    run_scale: np.ndarray
+    group_width: np.ndarray
+    held_bits: np.ndarray
+    lacking_bits: np.ndarray
+    votes: np.ndarray
+    flip_masks: np.ndarray
+    long_run: np.ndarray
+    emit: np.ndarray
+    emitted: np.ndarray
+    columns: ChannelColumns
     flips: np.ndarray
     camera_c: np.ndarray
     flipped_c: np.ndarray

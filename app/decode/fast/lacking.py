@@ -23,7 +23,14 @@ import numpy as np
 from numba import njit
 
 import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
-from app.decode.fast.bundles import NO_LACKING, Classifier, ClassifyScratch, FrameTables, LackingScratch
+from app.decode.fast.bundles import (
+    NO_LACKING,
+    ChannelColumns,
+    Classifier,
+    ClassifyScratch,
+    FrameTables,
+    LackingScratch,
+)
 from app.decode.fast.lacking_fill import model_sign_codes
 from app.decode.primitives import append_where, gather
 from core.mosaic import CHANNEL, site_codes
@@ -60,52 +67,60 @@ def lacking_scratch(W: int) -> LackingScratch:
     """The buffers lacking_flips writes, for rows of W pixels."""
     P = W + 24  # (per pixel, event or run, with room for the padding to whole vectors and compressed stores)
     H = W // 2 + 4 * SPAN  # (per column of one parity, with room for the columns read on from any)
+    i8 = np.int8
+    i32 = np.int32
+    f32 = np.float32
+    f64 = np.float64
+    columns = ChannelColumns(
+        np.zeros(H, i32),  # sign
+        np.zeros(H, i32),  # no_sign
+        np.zeros(H, i32),  # words
+        np.zeros(H, i32),  # sign_bits
+        np.zeros(H, i32),  # lacking_sign
+        np.zeros(H, i32),  # lacking_bits
+        np.zeros(H, i32),  # spare
+    )
     return LackingScratch(
-        np.zeros((W + 7) // 8 + 2, np.float32),
-        np.zeros(W, np.int8),
-        np.zeros(P, np.int8),
-        np.zeros(P, np.int8),
-        np.zeros(P, np.int8),
-        (
-            np.zeros(P, np.int32),
-            np.zeros(P, np.int32),
-            np.zeros(P, np.int32),
-            np.zeros(P, np.int32),
-            np.zeros(P, np.int32),
-            np.zeros(P, np.int32),
-            np.zeros(P, np.int32),
-            np.zeros(P, np.int32),
-            np.zeros(P, np.int32),
-            np.zeros(P, np.int32),
-            np.zeros(P, np.int32),
-            np.zeros(P, np.int32),
-            np.zeros(P, np.int32),
-        ),
-        (
-            np.zeros(P, np.float64),
-            np.zeros(P, np.float64),
-            np.zeros(P, np.float64),
-            np.zeros(P, np.float64),
-            np.zeros(P, np.float64),
-            np.zeros(P, np.float64),
-            np.zeros(P, np.float64),
-            np.zeros(P, np.float64),
-        ),
-        np.zeros(P, np.float32),
-        np.zeros(P, np.float32),
-        (
-            np.zeros(H, np.int32),
-            np.zeros(H, np.int32),
-            np.zeros(H, np.int32),
-            np.zeros(H, np.int32),
-            np.zeros(H, np.int32),
-            np.zeros(H, np.int32),
-            np.zeros(H, np.int32),
-        ),
-        np.zeros(P, np.int64),
-        np.zeros(P, np.int64),
-        np.empty(W, np.float32),
-        np.empty(W, np.float32),
+        np.zeros((W + 7) // 8 + 2, f32),  # g_max
+        np.zeros(P, f32),  # g_threshold
+        np.zeros(W, i8),  # sign
+        np.zeros(P, i32),  # strong
+        np.zeros(P, i8),  # event
+        np.zeros(P, i32),  # event_pixel
+        np.zeros(P, i32),  # is_edge
+        np.zeros(P, f32),  # g_at
+        np.zeros(P, f32),  # g_next
+        np.zeros(P, f64),  # event_position
+        np.zeros(P, i32),  # first_column
+        np.zeros(P, i32),  # column_span
+        np.zeros(P, i32),  # first_word
+        np.zeros(P, i32),  # candidate_changes
+        np.zeros(P, f64),  # candidate_ratio
+        np.zeros(P, i8),  # candidate
+        np.zeros(P, i8),  # usable
+        np.zeros(P, i8),  # long_candidate
+        np.zeros(P, i32),  # long_candidates
+        np.zeros(P, i32),  # run_event
+        np.zeros(P, i32),  # run_first_column
+        np.zeros(P, i32),  # run_changes
+        np.zeros(P, f64),  # run_e0
+        np.zeros(P, f64),  # run_e1
+        np.zeros(P, f64),  # run_ratio
+        np.zeros(P, f64),  # local_width
+        np.zeros(P, np.int64),  # run_stripes
+        np.zeros(P, f64),  # run_scale
+        np.zeros(P, f64),  # group_width
+        np.zeros(P, i32),  # held_bits
+        np.zeros(P, i32),  # lacking_bits
+        np.zeros(P, i32),  # votes
+        np.zeros(P, i32),  # flip_masks
+        np.zeros(P, i8),  # long_run
+        np.zeros(P, i8),  # emit
+        np.zeros(P, i32),  # emitted
+        columns,
+        np.zeros(P, np.int64),  # flips
+        np.empty(W, f32),  # camera_c
+        np.empty(W, f32),  # flipped_c
     )
 
 
@@ -180,8 +195,8 @@ def lacking_flips(g: np.ndarray, c: np.ndarray, cx: int, s: LackingScratch) -> i
     W = g.shape[0]
     if W < 2:
         return 0
-    _g_signs(g, s.g_max, s.gx, s.sign)
-    _channel_columns(c, cx, s.cols)
+    _g_signs(g, s.g_max, s.g_threshold, s.sign)
+    _channel_columns(c, cx, s.columns)
     ne = _events(g, s)
     nr = _runs(s, ne, cx, W)
     if nr == 0:
@@ -227,7 +242,7 @@ def _channel_columns(c, cx, cols):
     whether column k + m has no sign, with at SPAN + m whether k + m's sign differs from k + m - 1's. Per
     column lacking it (index l: column 2l + 1 - cx): its sign (0 for NaN and 0) and the bits m of whether c is
     > 0 at column l + m, and at 8 + m whether it is < 0."""
-    c_sign, no_c, words, c_bits, l_sign, l_bits, spare = cols
+    c_sign, no_c, words, c_bits, l_sign, l_bits, spare = cols  # (ChannelColumns)
     W = c.shape[0]
     nk = (W - cx + 1) // 2
     nl = (W - (1 - cx) + 1) // 2
@@ -287,13 +302,13 @@ def _whole(n):
 @njit(inline="always")
 def _events(g, s):
     """The events of the row: the G edges (opposite strong signs at x and x + 1) and the pixels without a strong
-    G sign, compacted into s.i32[0] (their pixel), with whether each is an edge (s.i32[2]) and its position
-    (s.f64[0]: the edge's zero crossing, a pixel without a sign its own pixel). A run of one G sign is a pair
-    of consecutive events that are both edges. Returns how many."""
+    G sign, compacted into s.event_pixel (their pixel), with whether each is an edge (s.is_edge) and its
+    position (s.event_position: the edge's zero crossing, a pixel without a sign its own pixel). A run of one G
+    sign is a pair of consecutive events that are both edges. Returns how many."""
     sg, ev = s.sign, s.event
-    at, strong, is_edge = s.i32[0], s.i32[1], s.i32[2]
-    epos = s.f64[0]
-    gx, gx1 = s.gx, s.gx1
+    at, strong, is_edge = s.event_pixel, s.strong, s.is_edge
+    epos = s.event_position
+    gx, gx1 = s.g_at, s.g_next
     W = g.shape[0]
     for x in range(W - 1):
         a = sg[x]
@@ -333,14 +348,16 @@ def _run_bounds(e0, e1, cx, W):
 @njit(inline="always")
 def _runs(s, ne, cx, W):
     """The runs of one G sign between consecutive events that the model can use (one G sign throughout, and a
-    sign at each of its three or more columns holding the channel): per run its first event (s.i32[11]), its
-    edges (s.f64[3], s.f64[4]), the sign changes its columns see (s.i32[12]) and its length per seen stripe
-    (s.f64[2]). Returns how many."""
-    c_sign, no_c, words = s.cols[0], s.cols[1], s.cols[2]  # (four doublings end in the row they start in)
-    is_edge, k0s, spans, w0, cand_changes, long_pairs = s.i32[2], s.i32[3], s.i32[4], s.i32[6], s.i32[10], s.i32[9]
-    run, changes = s.i32[11], s.i32[12]
-    epos, cand_ratio, ratio, e0s, e1s = s.f64[0], s.f64[1], s.f64[2], s.f64[3], s.f64[4]
-    pre, ok, long = s.flag_a, s.event, s.flag_b
+    sign at each of its three or more columns holding the channel): per run its first event (s.run_event), its
+    edges (s.run_e0, s.run_e1), the sign changes its columns see (s.run_changes) and its length per seen
+    stripe (s.run_ratio). Returns how many."""
+    cols = s.columns
+    c_sign, no_c, words = cols.sign, cols.no_sign, cols.words  # (four doublings end in the row they start in)
+    is_edge, k0s, spans, w0 = s.is_edge, s.first_column, s.column_span, s.first_word
+    cand_changes, long_pairs = s.candidate_changes, s.long_candidates
+    run, changes = s.run_event, s.run_changes
+    epos, cand_ratio, ratio, e0s, e1s = s.event_position, s.candidate_ratio, s.run_ratio, s.run_e0, s.run_e1
+    pre, ok, long = s.candidate, s.usable, s.long_candidate
     nc = ne - 1
     whole = _whole(max(nc, 0))
     for j in range(whole):
@@ -383,20 +400,20 @@ def _runs(s, ne, cx, W):
     gather(e0s, epos, run, pad)
     gather(e1s, epos[1:], run, pad)
     # per run the sign bits of its first eight columns of either kind (_channel_columns), from its first, k0
-    k0r, held, lacking = s.i32[5], s.i32[3], s.i32[4]
+    k0r, held, lacking = s.run_first_column, s.held_bits, s.lacking_bits
     gather(k0r, k0s, run, pad)
-    gather(held, s.cols[3], k0r, pad)
-    gather(lacking, s.cols[5][cx:], k0r, pad)
+    gather(held, cols.sign_bits, k0r, pad)
+    gather(lacking, cols.lacking_bits[cx:], k0r, pad)
     return nr
 
 
 @njit(inline="always")
 def _stripe_counts(s, nr):
-    """Per run the local stripe width (the median of the ratios of the runs around its group of GROUP: s.f64[5]
-    per run), its stripe count n (the changes seen, plus the pairs of them missed: s.n) and n over its span
-    (s.f64[6])."""
-    ratio, e0s, e1s, wr, scale, width = s.f64[2], s.f64[3], s.f64[4], s.f64[5], s.f64[6], s.f64[7]
-    changes, r_n = s.i32[12], s.n
+    """Per run the local stripe width (the median of the ratios of the runs around its group of GROUP:
+    s.local_width), its stripe count n (the changes seen, plus the pairs of them missed: s.run_stripes), n over
+    its span (s.run_scale); the groups' medians in s.group_width."""
+    ratio, e0s, e1s, wr, scale, width = s.run_ratio, s.run_e0, s.run_e1, s.local_width, s.run_scale, s.group_width
+    changes, r_n = s.run_changes, s.run_stripes
     ng = (nr + GROUP - 1) // GROUP
     # groups whose window is whole (13 runs from 4k - 4, the median the 7th) read it at fixed offsets
     inner = max(0, (nr - WINDOW - GROUP // 2 - 1) // GROUP)  # (groups 1 .. inner)
@@ -451,10 +468,10 @@ def _flips(s, nr, cx, W):
     columns from its first holding the channel, s0, alternate: those holding it at s0 + 2m, those lacking it at
     s0 + 1 + 2m (the first at or after its first pixel). Runs of at most eight of each (all but a few in a
     hundred) are taken in one loop, as words of bits m; the others in a loop over them alone."""
-    e0s, e1s, scale = s.f64[3], s.f64[4], s.f64[6]
-    held, lacking, masks, votes, emitted = s.i32[3], s.i32[4], s.i32[6], s.i32[7], s.i32[8]
-    r_n = s.n
-    is_long, emit = s.flag_a, s.flag_b
+    e0s, e1s, scale = s.run_e0, s.run_e1, s.run_scale
+    held, lacking, masks, votes, emitted = s.held_bits, s.lacking_bits, s.flip_masks, s.votes, s.emitted
+    r_n = s.run_stripes
+    is_long, emit = s.long_run, s.emit
     for i in range(_whole(nr)):
         e0 = e0s[i]
         e1 = e1s[i]
@@ -478,7 +495,7 @@ def _flips(s, nr, cx, W):
         votes[i] = vote
         is_long[i] = long
         emit[i] = (bits != 0) | long
-    c_sign, l_sign = s.cols[0], s.cols[4]
+    c_sign, l_sign = s.columns.sign, s.columns.lacking_sign
     flips = s.flips
     n_flip = 0
     n_emit = append_where(emit, nr, emitted)
