@@ -15,7 +15,7 @@ from numba import njit
 import core.jit  # noqa: F401  (numba's vector width, before anything compiles)
 from app.decode.fast.differences import differences
 from app.decode.fast.lacking import lacking_channel, lacking_flips, lacking_scratch
-from app.decode.fast.lacking_fill import model_sign_codes
+from app.decode.fast.lacking_fill import exchanged, model_sign_codes
 
 
 def lacking_signs(rgb1: np.ndarray, rgb2: np.ndarray, mosaic: str, decoder: object) -> tuple[np.ndarray, np.ndarray]:
@@ -53,19 +53,9 @@ def _fix_pair(f1, f2, tables, unmix, ig, cam, cx, o1, o2):
             x = s.flips[i]
             a = (f1[y, x, 0], f1[y, x, 1], f1[y, x, 2])
             b = (f2[y, x, 0], f2[y, x, 1], f2[y, x, 2])
-            a, b = _exchanged(a, b, cam)
+            a, b = exchanged(a, b, cam)
             a, b = model_sign_codes(a, b, cam, unmix[1 - ig], inverse, rows[1 - ig, x])
             o1[y, x, cam] = a[cam]
             o2[y, x, cam] = b[cam]
         changed += n
     return changed
-
-
-@njit(inline="always")
-def _exchanged(a, b, cam):
-    """The codes (c0, c1, c2) of a pixel in both frames with camera channel cam exchanged between them."""
-    if cam == 0:
-        return (b[0], a[1], a[2]), (a[0], b[1], b[2])
-    if cam == 1:
-        return (a[0], b[1], a[2]), (b[0], a[1], b[2])
-    return (a[0], a[1], b[2]), (b[0], b[1], a[2])

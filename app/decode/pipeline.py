@@ -190,10 +190,9 @@ class FrameSetDecoder:
             found = self._responses.get(dtype)
         if found is None:
             if isinstance(self.decoder, TwoShotDecoder):
-                lin = self.decoder.luts(dtype)[0]
+                found = self.decoder.inverse(dtype)  # (the one its row loop moves a raw fill's codes with)
             else:
-                lin = linearisation(65536 if dtype == np.uint16 else 256, self.camera_gamma)[0]
-            found = response_inverse(lin)
+                found = response_inverse(linearisation(65536 if dtype == np.uint16 else 256, self.camera_gamma)[0])
             with self._rgb_lock:
                 self._responses[dtype] = found
         return found

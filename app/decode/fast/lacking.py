@@ -31,7 +31,7 @@ from app.decode.fast.bundles import (
     FrameTables,
     LackingScratch,
 )
-from app.decode.fast.lacking_fill import model_sign_codes
+from app.decode.fast.lacking_fill import exchanged, model_sign_codes
 from app.decode.primitives import append_where, gather
 from core.mosaic import CHANNEL, site_codes
 
@@ -156,15 +156,8 @@ def lacking_row(
         # the lacking channel exchanged between the frames, or moved where the exchange keeps its unmixed sign
         # (lacking_fill); then the differences and noise floors in the order of the differences stage
         # (_row_differences, simd.differences16), so that the values are those of frames holding these codes
-        a0, a1, a2 = a[x, 0], a[x, 1], a[x, 2]
-        b0, b1, b2 = b[x, 0], b[x, 1], b[x, 2]
-        if cam == 0:
-            a0, b0 = b0, a0
-        elif cam == 1:
-            a1, b1 = b1, a1
-        else:
-            a2, b2 = b2, a2
-        (a0, a1, a2), (b0, b1, b2) = model_sign_codes((a0, a1, a2), (b0, b1, b2), cam, unmixed, inverse, lacking[x])
+        swapped = exchanged((a[x, 0], a[x, 1], a[x, 2]), (b[x, 0], b[x, 1], b[x, 2]), cam)
+        (a0, a1, a2), (b0, b1, b2) = model_sign_codes(*swapped, cam, unmixed, inverse, lacking[x])
         e0 = lin[0, b0] - lin[0, a0]
         e1 = lin[1, b1] - lin[1, a1]
         e2 = lin[2, b2] - lin[2, a2]
@@ -462,8 +455,7 @@ def _median(ratio, k, nr):
 @njit(inline="always")
 def _flips(s, nr, cx, W):
     """Per run the phase, the channel's columns' sign against the model's alternation, used where all of them
-    agree but at most `dissent` (each has a sign here, so the sum of the agreements is their count less twice
-    the dissenting ones, or minus that); then at the run's pixels lacking the channel (the runs' pixel ranges
+    agree but at most `dissent` (_phase); then at the run's pixels lacking the channel (the runs' pixel ranges
     are disjoint and increasing) whether the channel's sign differs from the model: into s.flips. A run's
     columns from its first holding the channel, s0, alternate: those holding it at s0 + 2m, those lacking it at
     s0 + 1 + 2m (the first at or after its first pixel). Runs of at most eight of each (all but a few in a

@@ -10,7 +10,7 @@ so that the unmixed difference takes the model's sign at the magnitude the excha
 estimate, not a sample of the sensor, and the model measured right at many more of these pixels than the fill
 (docs/performance.md, "The model's sign through the unmixing").
 
-Both paths use this function: the separate pass (app/decode/mosaic_signs.py) stores its codes into the frames,
+Both paths use these functions: the separate pass (app/decode/mosaic_signs.py) stores its codes into the frames,
 the fused row loop (lacking.lacking_row) recomputes the pixel's differences from them, so both decode the same
 maps bit for bit.
 """
@@ -53,6 +53,16 @@ def model_sign_codes(a: tuple, b: tuple, cam: int, row: np.ndarray, response: Re
     if cam == 1:
         return (a[0], code_a, a[2]), (b[0], code_b, b[2])
     return (a[0], a[1], code_a), (b[0], b[1], code_b)
+
+
+@njit(inline="always")
+def exchanged(a: tuple, b: tuple, cam: int) -> tuple:
+    """The codes (c0, c1, c2) of a pixel in both frames with camera channel cam exchanged between them."""
+    if cam == 0:
+        return (b[0], a[1], a[2]), (a[0], b[1], b[2])
+    if cam == 1:
+        return (a[0], b[1], a[2]), (b[0], a[1], b[2])
+    return (a[0], a[1], b[2]), (b[0], b[1], a[2])
 
 
 @njit(inline="always")
