@@ -32,13 +32,14 @@ from app.decode.fast.bundles import (
     LackingScratch,
 )
 from app.decode.fast.lacking_fill import exchanged, model_sign_codes
+from app.decode.fast.median13 import median13, network13
 from app.decode.primitives import append_where, gather
 from core.mosaic import CHANNEL, site_codes
 
 G_STRONG = 0.05  # a G sign counts at |dG| of this share of its local maximum (three 8-pixel blocks)
 WINDOW = 6  # runs either side whose widths per stripe give a run's local stripe width (their median)
 GROUP = 4  # consecutive runs that share one such median (taken around the group's middle)
-assert 2 * WINDOW + 1 == 13  # (the median's sorting network takes 13 values)
+assert 2 * WINDOW + 1 == 13  # (the median's sorting network takes 13 values: median13.py)
 MIN_WIDTH = 1.0  # camera pixels per stripe the model accepts for a run
 MAX_WIDTH = 3.2
 # a run is used where its channel's columns agree with the model's alternation, all of them or all but
@@ -414,7 +415,7 @@ def _stripe_counts(s, nr):
         width[k] = _median(ratio, k, nr)
     for k in range(inner):
         b = GROUP * k
-        width[k + 1] = _network13(
+        width[k + 1] = network13(
             ratio[b],
             ratio[b + 1],
             ratio[b + 2],
@@ -449,7 +450,7 @@ def _median(ratio, k, nr):
     """The local stripe width of group k (its runs GROUP k..): the median of the ratios of the runs within WINDOW
     of the group's middle."""
     centre = min(GROUP * k + GROUP // 2, nr - 1)
-    return _median13(ratio, max(0, centre - WINDOW), min(nr, centre + WINDOW + 1))
+    return median13(ratio, max(0, centre - WINDOW), min(nr, centre + WINDOW + 1))
 
 
 @njit(inline="always")
@@ -576,84 +577,6 @@ def _g_sign(v, thr):
     """G's sign where |v| reaches thr, else 0 (int8; arithmetic, not a select of int8 values, which LLVM
     vectorises poorly)."""
     return (np.int8(v > 0) - np.int8(v < 0)) * np.int8(abs(v) >= thr)
-
-
-@njit(inline="always")
-def _cas(a, b):
-    return min(a, b), max(a, b)
-
-
-@njit(inline="always")
-def _median13(v, lo, hi):
-    """The median of v[lo:hi], hi - lo <= 13 (the mean of the middle two for an even count): the window padded
-    with +inf to 13 values and sorted by a network of 48 compare-exchanges (Batcher's odd-even merge sort of 16,
-    less the comparators with the padding's last three, which never move), branch-free and in registers."""
-    m = hi - lo
-    last = v.shape[0] - 1
-    v0, v1, v2, v3 = _pad(v, lo, m, 0, last), _pad(v, lo, m, 1, last), _pad(v, lo, m, 2, last), _pad(v, lo, m, 3, last)
-    v4, v5, v6, v7 = _pad(v, lo, m, 4, last), _pad(v, lo, m, 5, last), _pad(v, lo, m, 6, last), _pad(v, lo, m, 7, last)
-    v8, v9, v10 = _pad(v, lo, m, 8, last), _pad(v, lo, m, 9, last), _pad(v, lo, m, 10, last)
-    v11, v12 = _pad(v, lo, m, 11, last), _pad(v, lo, m, 12, last)
-    v0, v1, v2, v3, v4, v5, v6, v7, v8, v9, v10, v11, v12 = _network13(
-        v0, v1, v2, v3, v4, v5, v6, v7, v8, v9, v10, v11, v12
-    )
-    k = m // 2
-    upper = _pick(k, v0, v1, v2, v3, v4, v5, v6, v7, v8, v9, v10, v11, v12)
-    lower = _pick(k - 1, v0, v1, v2, v3, v4, v5, v6, v7, v8, v9, v10, v11, v12)
-    return upper if m & 1 else 0.5 * (lower + upper)
-
-
-@njit(inline="always")
-def _network13(v0, v1, v2, v3, v4, v5, v6, v7, v8, v9, v10, v11, v12):
-    """The 13 values in increasing order: a network of 48 compare-exchanges (Batcher's odd-even merge sort of
-    16, less the comparators with the last three, which a padding of +inf never moves), branch-free and in
-    registers."""
-    (v0, v1), (v2, v3) = _cas(v0, v1), _cas(v2, v3)
-    (v0, v2), (v1, v3) = _cas(v0, v2), _cas(v1, v3)
-    (v1, v2), (v4, v5), (v6, v7) = _cas(v1, v2), _cas(v4, v5), _cas(v6, v7)
-    (v4, v6), (v5, v7) = _cas(v4, v6), _cas(v5, v7)
-    (v5, v6), (v0, v4) = _cas(v5, v6), _cas(v0, v4)
-    (v2, v6) = _cas(v2, v6)
-    (v2, v4), (v1, v5), (v3, v7) = _cas(v2, v4), _cas(v1, v5), _cas(v3, v7)
-    (v3, v5), (v1, v2) = _cas(v3, v5), _cas(v1, v2)
-    (v3, v4), (v5, v6), (v8, v9), (v10, v11) = _cas(v3, v4), _cas(v5, v6), _cas(v8, v9), _cas(v10, v11)
-    (v8, v10), (v9, v11) = _cas(v8, v10), _cas(v9, v11)
-    (v9, v10), (v8, v12) = _cas(v9, v10), _cas(v8, v12)
-    (v10, v12) = _cas(v10, v12)
-    (v9, v10), (v11, v12), (v0, v8) = _cas(v9, v10), _cas(v11, v12), _cas(v0, v8)
-    (v4, v12) = _cas(v4, v12)
-    (v4, v8), (v2, v10) = _cas(v4, v8), _cas(v2, v10)
-    (v6, v10), (v2, v4) = _cas(v6, v10), _cas(v2, v4)
-    (v6, v8), (v10, v12), (v1, v9) = _cas(v6, v8), _cas(v10, v12), _cas(v1, v9)
-    (v5, v9), (v3, v11) = _cas(v5, v9), _cas(v3, v11)
-    (v7, v11), (v3, v5) = _cas(v7, v11), _cas(v3, v5)
-    (v7, v9), (v1, v2), (v3, v4), (v5, v6) = _cas(v7, v9), _cas(v1, v2), _cas(v3, v4), _cas(v5, v6)
-    (v7, v8), (v9, v10), (v11, v12) = _cas(v7, v8), _cas(v9, v10), _cas(v11, v12)
-    return v0, v1, v2, v3, v4, v5, v6, v7, v8, v9, v10, v11, v12
-
-
-@njit(inline="always")
-def _pad(v, lo, m, j, last):
-    """v[lo + j] if j < m, else +inf (the read kept inside v)."""
-    return v[min(lo + j, last)] if j < m else np.inf
-
-
-@njit(inline="always")
-def _pick(k, v0, v1, v2, v3, v4, v5, v6, v7, v8, v9, v10, v11, v12):
-    """The k-th of the values (v0 for k < 1), by selects."""
-    r = v0
-    r = v1 if k == 1 else r
-    r = v2 if k == 2 else r
-    r = v3 if k == 3 else r
-    r = v4 if k == 4 else r
-    r = v5 if k == 5 else r
-    r = v6 if k == 6 else r
-    r = v7 if k == 7 else r
-    r = v8 if k == 8 else r
-    r = v9 if k == 9 else r
-    r = v10 if k == 10 else r
-    r = v11 if k == 11 else r
-    return v12 if k == 12 else r
 
 
 @njit(inline="always")

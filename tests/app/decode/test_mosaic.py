@@ -269,14 +269,14 @@ def test_the_leak_consistent_fill_gains_on_saturated_colours(panel, mosaic) -> N
 def test_the_sign_models_median_is_the_median_of_any_window() -> None:
     """fast/lacking.py takes the local stripe width as the median of up to 13 runs by a sorting network: for
     every window size and many windows (with ties, as runs of equal lengths give), numpy's median exactly."""
-    from app.decode.fast.lacking import _median13
+    from app.decode.fast.median13 import median13
 
     rng = np.random.default_rng(7)
     for trial in range(400):
         v = rng.integers(1, 6, 40) / rng.integers(1, 4, 40) if trial % 2 else rng.random(40) * 3
         lo = int(rng.integers(0, 20))
         for m in range(1, 14):
-            assert _median13(v, lo, lo + m) == np.median(v[lo : lo + m]), (trial, lo, m)
+            assert median13(v, lo, lo + m) == np.median(v[lo : lo + m]), (trial, lo, m)
 
 
 def _without_leak_removal(monkeypatch) -> None:
