@@ -150,10 +150,14 @@ class LackingScratch(NamedTuple):
     (run_first_column), sign changes (run_changes), edges (run_e0, run_e1), length per seen stripe (run_ratio),
     local stripe width (local_width), stripe count (run_stripes, int64), stripes per pixel (run_scale), the sign
     bits of its first eight columns of either kind (held_bits, lacking_bits), its vote (votes), flip masks
-    (flip_masks) and flags (long_run, emit), and the runs emitted (emitted); per group of lacking.GROUP runs the
-    median of their lengths per seen stripe (group_width). The channel's columns (ChannelColumns); the pixels
-    whose sign flips (flips) and their camera difference of the channel once flipped, float32 (flipped_c,
-    lacking_fill.py); the channel's camera differences, float32 (camera_c, lacking_leak.py)."""
+    (flip_masks) and flags (long_run, emit), the runs emitted (emitted) and those of more than eight columns
+    (long_runs), its phase where the flips read it (run_phase: a long run's own, or one carried across a G edge),
+    its own phase with a zero guard before the first run and after the last (own_phase, run i at
+    i + 1), whether it has none (refused, int8) and the runs without one (refused_runs); per group of
+    lacking.GROUP runs the median of their lengths per seen stripe (group_width). The channel's columns
+    (ChannelColumns); the pixels whose sign flips (flips) and their camera difference of the channel once
+    flipped, float32 (flipped_c, lacking_fill.py); the channel's camera differences, float32 (camera_c,
+    lacking_leak.py)."""
 
     g_max: np.ndarray
     g_threshold: np.ndarray
@@ -191,6 +195,11 @@ class LackingScratch(NamedTuple):
     long_run: np.ndarray
     emit: np.ndarray
     emitted: np.ndarray
+    long_runs: np.ndarray
+    own_phase: np.ndarray
+    run_phase: np.ndarray
+    refused: np.ndarray
+    refused_runs: np.ndarray
     columns: ChannelColumns
     flips: np.ndarray
     camera_c: np.ndarray

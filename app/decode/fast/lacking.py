@@ -46,6 +46,9 @@ MAX_WIDTH = 3.2
 # MAX_DISSENT where there are at least MIN_VOTERS (docs/performance.md, "One dissenting column")
 MAX_DISSENT = 1
 MIN_VOTERS = 3
+# a run the model refuses takes its neighbours' phase where the local stripe width (camera pixels) is in this range
+CARRY_WIDTHS = (1.75, 2.2)
+CARRY_AGREEMENT = 0.2  # and where its stripe width is within this share of the width of each run it takes it from
 SPAN = 16  # columns of one parity a word of bits covers (a run of more is checked in a loop of its own)
 
 
@@ -118,6 +121,11 @@ def lacking_scratch(W: int) -> LackingScratch:
         np.zeros(P, i8),  # long_run
         np.zeros(P, i8),  # emit
         np.zeros(P, i32),  # emitted
+        np.zeros(P, i32),  # long_runs
+        np.zeros(P + 2, i32),  # own_phase
+        np.zeros(P, i32),  # run_phase
+        np.zeros(P, i8),  # refused
+        np.zeros(P, i32),  # refused_runs
         columns,
         np.zeros(P, np.int64),  # flips
         np.empty(W, f32),  # camera_c
@@ -456,15 +464,19 @@ def _median(ratio, k, nr):
 @njit(inline="always")
 def _flips(s, nr, cx, W):
     """Per run the phase, the channel's columns' sign against the model's alternation, used where all of them
-    agree but at most `dissent` (_phase); then at the run's pixels lacking the channel (the runs' pixel ranges
-    are disjoint and increasing) whether the channel's sign differs from the model: into s.flips. A run's
-    columns from its first holding the channel, s0, alternate: those holding it at s0 + 2m, those lacking it at
-    s0 + 1 + 2m (the first at or after its first pixel). Runs of at most eight of each (all but a few in a
-    hundred) are taken in one loop, as words of bits m; the others in a loop over them alone."""
+    agree but at most `dissent` (_phase), else carried across a G edge from the runs beside it (_carried); then at
+    the run's pixels lacking the channel (the runs' pixel ranges are disjoint and increasing) whether the
+    channel's sign differs from the model: into s.flips. A run's columns from its first holding the channel, s0,
+    alternate: those holding it at s0 + 2m, those lacking it at s0 + 1 + 2m (the first at or after its first
+    pixel). Runs of at most eight of each (all but a few in a hundred) are taken in one loop, as words of bits
+    m; the others, and the runs refused, in loops over them alone."""
     e0s, e1s, scale = s.run_e0, s.run_e1, s.run_scale
-    held, lacking, masks, votes, emitted = s.held_bits, s.lacking_bits, s.flip_masks, s.votes, s.emitted
+    held, lacking, masks, votes = s.held_bits, s.lacking_bits, s.flip_masks, s.votes
     r_n = s.run_stripes
-    is_long, emit = s.long_run, s.emit
+    is_long, emit, emitted, longs = s.long_run, s.emit, s.emitted, s.long_runs
+    own, phase, refused = s.own_phase, s.run_phase, s.refused
+    wr = s.local_width
+    lo_w, hi_w = CARRY_WIDTHS
     for i in range(_whole(nr)):
         e0 = e0s[i]
         e1 = e1s[i]
@@ -483,38 +495,97 @@ def _flips(s, nr, cx, W):
         # the vote: agreeing columns count +1 (the channel's sign bit is set where the model's stripe is even)
         agree = (odd_held ^ held[i]) & ((np.int32(1) << np.int32(min(voters, 8))) - np.int32(1))
         vote = 2 * _bit_count8(agree) - min(voters, 8)
-        bits = _lacking_bits(odd_lacking, _phase(vote, voters, (e1 - e0) / n), lacking[i], lacking_n)
+        p = _phase(vote, voters, (e1 - e0) / n)  # (a long run's from its whole vote, below)
+        bits = _lacking_bits(odd_lacking, p, lacking[i], lacking_n)
         masks[i] = bits | (odd_lacking << np.int32(8))
         votes[i] = vote
+        own[i + 1] = p
         is_long[i] = long
+        refused[i] = (p == 0) & (lo_w <= wr[i]) & (wr[i] <= hi_w)  # (where _carried may give it one)
         emit[i] = (bits != 0) | long
-    c_sign, l_sign = s.columns.sign, s.columns.lacking_sign
+    c_sign = s.columns.sign
+    n_long = append_where(is_long, nr, longs)
+    for t in range(n_long):  # (more than eight columns of either kind: the vote completed over the rest)
+        i = longs[t]
+        e0 = e0s[i]
+        _, x1, k0, k1 = _run_bounds(e0, e1s[i], cx, W)
+        vote = np.int64(votes[i])
+        for k in range(k0 + 8, k1 + 1):
+            vote += _alternating(2 * k + cx, e0, scale[i], r_n[i]) * c_sign[k]
+        p = _phase(vote, k1 - k0 + 1, (e1s[i] - e0) / r_n[i])
+        votes[i] = vote
+        own[i + 1] = p
+        phase[i] = p
+        refused[i] = (p == 0) & (lo_w <= wr[i]) & (wr[i] <= hi_w)
+        count = max((x1 - 2 * k0 - cx - 1) // 2 + 1, 0)
+        masks[i] = _lacking_bits(masks[i] >> np.int32(8), p, lacking[i], count) | (masks[i] & np.int32(0xFF00))
+    _carried(s, nr, cx, W)
+    l_sign = s.columns.lacking_sign
     flips = s.flips
     n_flip = 0
     n_emit = append_where(emit, nr, emitted)
     for t in range(n_emit):
         i = emitted[t]
         e0 = e0s[i]
-        _, x1, k0, k1 = _run_bounds(e0, e1s[i], cx, W)
+        _, x1, k0, _ = _run_bounds(e0, e1s[i], cx, W)
         first = 2 * k0 + cx + 1
         bits = masks[i] & np.int32(255)
-        phase = 0
-        if is_long[i] != 0:  # (more than eight columns of either kind: the vote completed, then phase and bits)
-            sc, n = scale[i], r_n[i]
-            vote = np.int64(votes[i])
-            for k in range(k0 + 8, k1 + 1):
-                vote += _alternating(2 * k + cx, e0, sc, n) * c_sign[k]
-            phase = _phase(vote, k1 - k0 + 1, (e1s[i] - e0) / n)
-            lacking_n = max((x1 - first) // 2 + 1, 0)
-            bits = _lacking_bits(masks[i] >> np.int32(8), phase, lacking[i], lacking_n)
         for m in range(8):
             flips[n_flip] = first + 2 * m
             n_flip += (bits >> m) & 1
+        p_run = phase[i]  # (written for the long runs and the carried ones: the only ones it is read for)
         for q in range(first + 16, x1 + 1, 2):  # (none unless long)
-            p = phase * _alternating(q, e0, scale[i], r_n[i])
+            p = p_run * _alternating(q, e0, scale[i], r_n[i])
             flips[n_flip] = q
             n_flip += (p != 0) & (p != l_sign[q >> 1])
     return n_flip
+
+
+@njit(inline="always")
+def _carried(s, nr, cx, W):
+    """The runs without a phase of their own where the local stripe width lies in CARRY_WIDTHS (s.refused) take the
+    phase carried across the G edge they share with a run beside it that has one, with its flip mask and whether
+    it is emitted. The two-shot code flips one channel at each stripe edge, so the lacking channel is constant
+    across a G edge: the last stripe of a run of n stripes and phase p has the sign p (-1)^(n - 1), which is the
+    next run's first. CARRY_WIDTHS is where the channel's own columns sit at their Nyquist limit (such a run was
+    refused for their dissent; wider stripes are refused for a stripe count the columns saw right). Carried where
+    the two sides agree or one is known, the run's own vote is not against it, and its stripes are as wide as
+    those of each run it takes the phase from, to CARRY_AGREEMENT (a stripe count off by two, under a phase
+    carried in, would flip the wrong columns) (docs/performance.md, "The phase across a G edge")."""
+    own, phase, refused, runs = s.own_phase, s.run_phase, s.refused, s.refused_runs
+    event, r_n, votes, e0s, e1s = s.run_event, s.run_stripes, s.votes, s.run_e0, s.run_e1
+    masks, emit, lacking = s.flip_masks, s.emit, s.lacking_bits
+    own[0] = 0
+    own[nr + 1] = 0
+    n_refused = append_where(refused, nr, runs)
+    for t in range(n_refused):
+        i = runs[t]
+        width = (e1s[i] - e0s[i]) / r_n[i]
+        p = 0
+        agree = True
+        if i > 0 and event[i - 1] + 1 == event[i] and own[i] != 0:  # (the run before ends where this one starts)
+            p = own[i] * _carry_sign(r_n[i - 1])
+            left = (e1s[i - 1] - e0s[i - 1]) / r_n[i - 1]
+            agree = abs(width - left) <= CARRY_AGREEMENT * left
+        if i + 1 < nr and event[i] + 1 == event[i + 1] and own[i + 2] != 0:
+            q = own[i + 2] * _carry_sign(r_n[i])
+            right = (e1s[i + 1] - e0s[i + 1]) / r_n[i + 1]
+            agree &= (p == 0) | (p == q)
+            agree &= abs(width - right) <= CARRY_AGREEMENT * right
+            p = q
+        if p == 0 or not agree or p * votes[i] < 0 or width < MIN_WIDTH or width > MAX_WIDTH:
+            continue
+        _, x1, k0, _ = _run_bounds(e0s[i], e1s[i], cx, W)
+        bits = _lacking_bits(masks[i] >> np.int32(8), p, lacking[i], max((x1 - 2 * k0 - cx - 1) // 2 + 1, 0))
+        masks[i] |= bits
+        phase[i] = p
+        emit[i] |= bits != 0
+
+
+@njit(inline="always")
+def _carry_sign(n):
+    """(-1)^(n - 1): the sign a run of n stripes carries a phase across by (its last stripe's against its first)."""
+    return 1 - 2 * ((n - 1) & 1)
 
 
 @njit(inline="always")

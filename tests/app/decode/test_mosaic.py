@@ -3,6 +3,7 @@ virtual rig's ground truth, for every mosaic order and 8 and 12 bits."""
 
 from __future__ import annotations
 
+import itertools
 import warnings
 from dataclasses import replace
 
@@ -427,3 +428,52 @@ def test_a_flipped_fill_whose_unmixed_sign_the_leak_keeps_takes_the_models_sign(
     assert model_sign_codes(a, b, 2, row, response, 0.0) == (a, b)
     no_b = np.array([-0.01, -0.3, 0.0], np.float32)
     assert model_sign_codes(a, b, 2, no_b, response, before) == (a, b)
+
+
+def _coded_row(width: float, W: int = 160) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A row of the two-shot code's stripes, `width` camera pixels each: G's and B's differences (+-1 by each
+    pixel's stripe) and B's true sign; B held by the odd columns, the even ones given B's wrong sign (as an
+    aliased fill gives it)."""
+    ps = make_patterns("two-shot", (512, 1))
+    p1, p2 = ps.images[0][0].astype(int), ps.images[1][0].astype(int)
+    stripe = ((np.arange(W) + 0.5) / width).astype(int) + 40  # (from the 40th stripe: an arbitrary place in the code)
+    g = np.sign(p2[stripe, 1] - p1[stripe, 1]).astype(np.float32)
+    b = np.sign(p2[stripe, 2] - p1[stripe, 2]).astype(np.float32)
+    c = np.where(np.arange(W) % 2 == 1, b, -b).astype(np.float32)
+    return g, c, b
+
+
+def _g_runs(g: np.ndarray) -> list[tuple[int, int]]:
+    """The pixel ranges (first, last) of G's runs of one sign between two G edges."""
+    edges = np.flatnonzero(g[1:] != g[:-1]) + 1
+    return [(a, b - 1) for a, b in itertools.pairwise(edges)]
+
+
+@pytest.mark.parametrize(("width", "carried"), [(2.0, True), (2.6, False)])
+def test_a_refused_run_takes_its_neighbours_phase_across_the_g_edge(width, carried) -> None:
+    """The lacking channel is constant across a G edge (the code flips one channel at a stripe edge): a run whose
+    B columns dissent takes the phase of the runs beside it where the stripes sit at B's Nyquist limit (~2 camera
+    pixels), and keeps none where they are wide enough for its own columns."""
+    from app.decode.fast.lacking import lacking_flips, lacking_scratch
+
+    g, c, b = _coded_row(width)
+    W = g.size
+    runs = [r for r in _g_runs(g) if 20 < r[0] and r[1] < W - 20 and r[1] - r[0] >= 7]  # four or more B columns
+    first, last = runs[len(runs) // 2]
+    held = [x for x in range(first, last + 1) if x % 2 == 1]
+    c[held[1]] *= -1  # two of its B columns dissent (inside it: its neighbours' columns agree)
+    c[held[2]] *= -1
+    s = lacking_scratch(W)
+    n = lacking_flips(g, c, 1, s)
+    flipped = set(s.flips[:n].tolist())
+    lacking = [x for x in range(first, last + 1) if x % 2 == 0]
+    # the other runs' lacking columns come back to B's true sign (each had the wrong one): all of them but a
+    # few at 2.6 pixels a stripe, where a column near a B edge may sit in the other stripe of the model's
+    others = [x for f, t in _g_runs(g) if (f, t) != (first, last) and 20 < f and t < W - 20 for x in range(f, t + 1)]
+    others = [x for x in others if x % 2 == 0]
+    assert np.mean([x in flipped for x in others]) > 0.9
+    if carried:
+        assert all(x in flipped for x in lacking)
+        assert all(np.sign(-c[x]) == b[x] for x in lacking)  # (flipping the wrong sign gives the true one)
+    else:
+        assert not any(x in flipped for x in lacking)
