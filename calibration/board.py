@@ -85,7 +85,7 @@ def board_from_dict(data: object, where: str = FILENAME) -> Board:
     if kind not in TYPES:
         raise InputError(f"{where}: field 'type' is {kind!r}, expected one of {', '.join(TYPES)}")
     allowed = {"type", "rows", "cols", "square_mm"} | ({"marker_mm", "dictionary"} if kind == "charuco" else set())
-    unknown = sorted(set(data) - allowed)
+    unknown = sorted(set(data) - allowed, key=str)  # (YAML keys may be null or numbers beside the names)
     if unknown:
         raise InputError(f"{where}: unknown field '{unknown[0]}' for a {kind} board")
     minimum = 2 if kind == "checkerboard" else 3
