@@ -152,9 +152,8 @@ class LackingScratch(NamedTuple):
     bits of its first eight columns of either kind (held_bits, lacking_bits), its vote (votes), flip masks
     (flip_masks) and flags (long_run, emit), the runs emitted (emitted) and those of more than eight columns
     (long_runs), its phase where the flips read it (run_phase: a long run's own, or one carried across a G edge),
-    its own phase with a zero guard before the first run and after the last (own_phase, run i at
-    i + 1), whether it has none (refused, int8) and the runs without one (refused_runs); per group of
-    lacking.GROUP runs the median of their lengths per seen stripe (group_width). The channel's columns
+    its own phase (own_phase), whether _carried may give it one (refused, int8) and those runs (refused_runs); per
+    group of lacking.GROUP runs the median of their lengths per seen stripe (group_width). The channel's columns
     (ChannelColumns); the pixels whose sign flips (flips) and their camera difference of the channel once
     flipped, float32 (flipped_c, lacking_fill.py); the channel's camera differences, float32 (camera_c,
     lacking_leak.py)."""

@@ -122,7 +122,7 @@ def lacking_scratch(W: int) -> LackingScratch:
         np.zeros(P, i8),  # emit
         np.zeros(P, i32),  # emitted
         np.zeros(P, i32),  # long_runs
-        np.zeros(P + 2, i32),  # own_phase
+        np.zeros(P, i32),  # own_phase
         np.zeros(P, i32),  # run_phase
         np.zeros(P, i8),  # refused
         np.zeros(P, i32),  # refused_runs
@@ -476,7 +476,6 @@ def _flips(s, nr, cx, W):
     is_long, emit, emitted, longs = s.long_run, s.emit, s.emitted, s.long_runs
     own, phase, refused = s.own_phase, s.run_phase, s.refused
     wr = s.local_width
-    lo_w, hi_w = CARRY_WIDTHS
     for i in range(_whole(nr)):
         e0 = e0s[i]
         e1 = e1s[i]
@@ -490,7 +489,7 @@ def _flips(s, nr, cx, W):
             odd_held |= _odd(s0 + 2 * m, e0, sc, top) << np.int32(m)
             odd_lacking |= _odd(s0 + (2 * m + 1), e0, sc, top) << np.int32(m)
         voters = k1 - k0 + 1
-        lacking_n = max((x1 - 2 * k0 - cx - 1) // 2 + 1, 0)
+        lacking_n = _lacking_count(x1, k0, cx)
         long = (voters > 8) | (lacking_n > 8)
         # the vote: agreeing columns count +1 (the channel's sign bit is set where the model's stripe is even)
         agree = (odd_held ^ held[i]) & ((np.int32(1) << np.int32(min(voters, 8))) - np.int32(1))
@@ -499,9 +498,9 @@ def _flips(s, nr, cx, W):
         bits = _lacking_bits(odd_lacking, p, lacking[i], lacking_n)
         masks[i] = bits | (odd_lacking << np.int32(8))
         votes[i] = vote
-        own[i + 1] = p
+        own[i] = p
         is_long[i] = long
-        refused[i] = (p == 0) & (lo_w <= wr[i]) & (wr[i] <= hi_w)  # (where _carried may give it one)
+        refused[i] = _may_carry(p, wr[i])
         emit[i] = (bits != 0) | long
     c_sign = s.columns.sign
     n_long = append_where(is_long, nr, longs)
@@ -512,13 +511,13 @@ def _flips(s, nr, cx, W):
         vote = np.int64(votes[i])
         for k in range(k0 + 8, k1 + 1):
             vote += _alternating(2 * k + cx, e0, scale[i], r_n[i]) * c_sign[k]
-        p = _phase(vote, k1 - k0 + 1, (e1s[i] - e0) / r_n[i])
+        p = _phase(vote, k1 - k0 + 1, _run_width(s, i))
         votes[i] = vote
-        own[i + 1] = p
+        own[i] = p
         phase[i] = p
-        refused[i] = (p == 0) & (lo_w <= wr[i]) & (wr[i] <= hi_w)
-        count = max((x1 - 2 * k0 - cx - 1) // 2 + 1, 0)
-        masks[i] = _lacking_bits(masks[i] >> np.int32(8), p, lacking[i], count) | (masks[i] & np.int32(0xFF00))
+        refused[i] = _may_carry(p, wr[i])
+        bits = _lacking_bits(masks[i] >> np.int32(8), p, lacking[i], _lacking_count(x1, k0, cx))
+        masks[i] = bits | (masks[i] & np.int32(0xFF00))
     _carried(s, nr, cx, W)
     l_sign = s.columns.lacking_sign
     flips = s.flips
@@ -553,33 +552,51 @@ def _carried(s, nr, cx, W):
     those of each run it takes the phase from, to CARRY_AGREEMENT (a stripe count off by two, under a phase
     carried in, would flip the wrong columns) (docs/performance.md, "The phase across a G edge")."""
     own, phase, refused, runs = s.own_phase, s.run_phase, s.refused, s.refused_runs
-    event, r_n, votes, e0s, e1s = s.run_event, s.run_stripes, s.votes, s.run_e0, s.run_e1
+    event, r_n, votes = s.run_event, s.run_stripes, s.votes
     masks, emit, lacking = s.flip_masks, s.emit, s.lacking_bits
-    own[0] = 0
-    own[nr + 1] = 0
     n_refused = append_where(refused, nr, runs)
     for t in range(n_refused):
         i = runs[t]
-        width = (e1s[i] - e0s[i]) / r_n[i]
+        width = _run_width(s, i)
         p = 0
         agree = True
-        if i > 0 and event[i - 1] + 1 == event[i] and own[i] != 0:  # (the run before ends where this one starts)
-            p = own[i] * _carry_sign(r_n[i - 1])
-            left = (e1s[i - 1] - e0s[i - 1]) / r_n[i - 1]
+        if i > 0 and event[i - 1] + 1 == event[i] and own[i - 1] != 0:  # (the run before ends where this one starts)
+            p = own[i - 1] * _carry_sign(r_n[i - 1])
+            left = _run_width(s, i - 1)
             agree = abs(width - left) <= CARRY_AGREEMENT * left
-        if i + 1 < nr and event[i] + 1 == event[i + 1] and own[i + 2] != 0:
-            q = own[i + 2] * _carry_sign(r_n[i])
-            right = (e1s[i + 1] - e0s[i + 1]) / r_n[i + 1]
+        if i + 1 < nr and event[i] + 1 == event[i + 1] and own[i + 1] != 0:
+            q = own[i + 1] * _carry_sign(r_n[i])
+            right = _run_width(s, i + 1)
             agree &= (p == 0) | (p == q)
             agree &= abs(width - right) <= CARRY_AGREEMENT * right
             p = q
         if p == 0 or not agree or p * votes[i] < 0 or width < MIN_WIDTH or width > MAX_WIDTH:
             continue
-        _, x1, k0, _ = _run_bounds(e0s[i], e1s[i], cx, W)
-        bits = _lacking_bits(masks[i] >> np.int32(8), p, lacking[i], max((x1 - 2 * k0 - cx - 1) // 2 + 1, 0))
+        _, x1, k0, _ = _run_bounds(s.run_e0[i], s.run_e1[i], cx, W)
+        bits = _lacking_bits(masks[i] >> np.int32(8), p, lacking[i], _lacking_count(x1, k0, cx))
         masks[i] |= bits
         phase[i] = p
         emit[i] |= bits != 0
+
+
+@njit(inline="always")
+def _may_carry(p, local_width):
+    """Whether a run with own phase p and this local stripe width is one _carried may give a phase: none of its
+    own, and the width in CARRY_WIDTHS."""
+    return (p == 0) & (CARRY_WIDTHS[0] <= local_width) & (local_width <= CARRY_WIDTHS[1])
+
+
+@njit(inline="always")
+def _run_width(s, i):
+    """Run i's stripe width: its span over its stripe count."""
+    return (s.run_e1[i] - s.run_e0[i]) / s.run_stripes[i]
+
+
+@njit(inline="always")
+def _lacking_count(x1, k0, cx):
+    """The columns lacking the channel of a run whose last pixel is x1 and first column holding it k0 (they lie at
+    2 k0 + cx + 1 + 2m, up to x1)."""
+    return max((x1 - 2 * k0 - cx - 1) // 2 + 1, 0)
 
 
 @njit(inline="always")
