@@ -31,12 +31,14 @@ def lacking_signs(rgb1: np.ndarray, rgb2: np.ndarray, mosaic: str, decoder: obje
     f2 = np.ascontiguousarray(rgb2)
     o1 = f1.copy()
     o2 = f2.copy()
-    _fix_pair(f1, f2, (lin, dlin, packed, decoder.inverse(rgb1.dtype)), decoder.unmix, ig, cam, cx, o1, o2)
+    ta = np.float32(decoder.params.t_abs) * np.float32(0.5)  # (the noise floors the fused path's model reads)
+    tables = (lin, dlin, packed, decoder.inverse(rgb1.dtype))
+    _fix_pair(f1, f2, tables, decoder.unmix, ta, ig, cam, cx, o1, o2)
     return o1, o2
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _fix_pair(f1, f2, tables, unmix, ig, cam, cx, o1, o2):
+def _fix_pair(f1, f2, tables, unmix, ta, ig, cam, cx, o1, o2):
     """o1, o2: copies of f1, f2, changed where the lacking channel (camera channel cam, held by the columns of
     parity cx) gets the other sign; returns how many pixels changed. tables: (lin, dlin, packed) of the decoder
     (TwoShotDecoder.tables) and the response's inverse (TwoShotDecoder.inverse)."""
@@ -47,8 +49,8 @@ def _fix_pair(f1, f2, tables, unmix, ig, cam, cx, o1, o2):
     s = lacking_scratch(W)
     changed = 0
     for y in range(H):
-        differences(f1, f2, y, lin, dlin, packed, unmix, np.float32(0.0), rows, ahead)
-        n = lacking_flips(rows[ig], rows[1 - ig], cx, s)
+        differences(f1, f2, y, lin, dlin, packed, unmix, ta, rows, ahead)
+        n = lacking_flips(rows[ig], rows[1 - ig], rows[2 + ig], cx, s)
         for i in range(n):
             x = s.flips[i]
             a = (f1[y, x, 0], f1[y, x, 1], f1[y, x, 2])

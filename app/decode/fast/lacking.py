@@ -36,7 +36,10 @@ from app.decode.fast.median13 import median13, network13
 from app.decode.primitives import append_where, gather
 from core.mosaic import CHANNEL, site_codes
 
-G_STRONG = 0.05  # a G sign counts at |dG| of this share of its local maximum (three 8-pixel blocks)
+# a G sign counts where |dG| reaches this share of its local maximum (three 8-pixel blocks) and the noise floor
+# of dG (the decoder's, rows[2:4]): the floor, not a larger share, keeps noise out of weakly lit patches, whose
+# stripes a larger share would lose (docs/performance.md, "G's sign above its noise floor")
+G_STRONG = 0.02
 WINDOW = 6  # runs either side whose widths per stripe give a run's local stripe width (their median)
 GROUP = 4  # consecutive runs that share one such median (taken around the group's middle)
 assert 2 * WINDOW + 1 == 13  # (the median's sorting network takes 13 values: median13.py)
@@ -147,7 +150,7 @@ def lacking_row(
         return 0
     rows = scratch.rows
     s = scratch.lacking
-    n = lacking_flips(rows[ig], rows[1 - ig], cx, s)
+    n = lacking_flips(rows[ig], rows[1 - ig], rows[2 + ig], cx, s)
     lin = tables.lin
     dl = tables.dlin
     u = classifier.unmix
@@ -182,10 +185,10 @@ def lacking_row(
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
-def lacking_flips(g: np.ndarray, c: np.ndarray, cx: int, s: LackingScratch) -> int:
+def lacking_flips(g: np.ndarray, c: np.ndarray, g_floor: np.ndarray, cx: int, s: LackingScratch) -> int:
     """The pixels of one row whose lacking channel (differences c, held by the columns of parity cx; G's
-    differences g) gets the other sign, into s.flips (each at most once, in increasing order); returns how
-    many.
+    differences g, their noise floor g_floor) gets the other sign, into s.flips (each at most once, in
+    increasing order); returns how many.
 
     Stripe edges fall every two or three pixels, so a branch per pixel or per run would be mispredicted about
     half the time, and a loop that reads at computed indices beside its stores stays scalar: every stage is a
@@ -197,7 +200,7 @@ def lacking_flips(g: np.ndarray, c: np.ndarray, cx: int, s: LackingScratch) -> i
     W = g.shape[0]
     if W < 2:
         return 0
-    _g_signs(g, s.g_max, s.g_threshold, s.sign)
+    _g_signs(g, g_floor, s.g_max, s.g_threshold, s.sign)
     _channel_columns(c, cx, s.columns)
     ne = _events(g, s)
     nr = _runs(s, ne, cx, W)
@@ -208,9 +211,9 @@ def lacking_flips(g: np.ndarray, c: np.ndarray, cx: int, s: LackingScratch) -> i
 
 
 @njit(inline="always")
-def _g_signs(g, bmax, thr, sg):
-    """sg: G's strong signs, from the maxima of |dG| per block of 8 (into bmax, at 1 + b with zero guards) and
-    their thresholds per pixel (thr, 8 per block)."""
+def _g_signs(g, floor, bmax, thr, sg):
+    """sg: G's strong signs, from the maxima of |dG| per block of 8 (into bmax, at 1 + b with zero guards), their
+    thresholds per pixel (thr, 8 per block) and G's noise floor per pixel (floor)."""
     W = g.shape[0]
     nb = (W + 7) // 8
     bmax[0] = 0.0
@@ -234,7 +237,7 @@ def _g_signs(g, bmax, thr, sg):
         for j in range(8):
             thr[8 * k + j] = t
     for x in range(W):
-        sg[x] = _g_sign(g[x], thr[x])
+        sg[x] = _g_sign(g[x], max(thr[x], floor[x]))
 
 
 @njit(inline="always")

@@ -464,7 +464,7 @@ def test_a_refused_run_takes_its_neighbours_phase_across_the_g_edge(width, carri
     c[held[1]] *= -1  # two of its B columns dissent (inside it: its neighbours' columns agree)
     c[held[2]] *= -1
     s = lacking_scratch(W)
-    n = lacking_flips(g, c, 1, s)
+    n = lacking_flips(g, c, np.zeros_like(g), 1, s)  # (no noise)
     flipped = set(s.flips[:n].tolist())
     lacking = [x for x in range(first, last + 1) if x % 2 == 0]
     # the other runs' lacking columns come back to B's true sign (each had the wrong one): all of them but a
