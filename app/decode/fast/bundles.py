@@ -152,8 +152,8 @@ class LackingScratch(NamedTuple):
     bits of its first eight columns of either kind (held_bits, lacking_bits), its vote (votes), flip masks
     (flip_masks) and flags (long_run, emit), the runs emitted (emitted) and those of more than eight columns
     (long_runs), its phase where the flips read it (run_phase: a long run's own, or one carried across a G edge),
-    its own phase (own_phase), whether _carried may give it one (refused, int8) and those runs (refused_runs); per
-    group of lacking.GROUP runs the median of their lengths per seen stripe (group_width). The channel's columns
+    its own phase (own_phase), whether _carried may give it one (refused, int8) and those runs (refused_runs). The
+    channel's columns
     (ChannelColumns); the pixels whose sign flips (flips) and their camera difference of the channel once
     flipped, float32 (flipped_c, lacking_fill.py); the channel's camera differences, float32 (camera_c,
     lacking_leak.py)."""
@@ -186,7 +186,6 @@ class LackingScratch(NamedTuple):
     local_width: np.ndarray
     run_stripes: np.ndarray
     run_scale: np.ndarray
-    group_width: np.ndarray
     held_bits: np.ndarray
     lacking_bits: np.ndarray
     votes: np.ndarray

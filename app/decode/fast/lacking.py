@@ -40,9 +40,11 @@ from core.mosaic import CHANNEL, site_codes
 # of dG (the decoder's, rows[2:4]): the floor, not a larger share, keeps noise out of weakly lit patches, whose
 # stripes a larger share would lose (docs/performance.md, "G's sign above its noise floor")
 G_STRONG = 0.02
-WINDOW = 6  # runs either side whose widths per stripe give a run's local stripe width (their median)
-GROUP = 4  # consecutive runs that share one such median (taken around the group's middle)
-assert 2 * WINDOW + 1 == 13  # (the median's sorting network takes 13 values: median13.py)
+# runs either side whose widths per stripe give a run's local stripe width (their median, per run: where the width
+# changes fast, on a turned-away surface, a wider window or one median per group of runs overestimates it and
+# miscounts the stripes; docs/performance.md, "The local width per run")
+WINDOW = 5
+assert WINDOW == 5  # (_stripe_counts reads a whole window of 11 runs at fixed offsets into the 13-value network)
 MIN_WIDTH = 1.0  # camera pixels per stripe the model accepts for a run
 MAX_WIDTH = 3.2
 # a run is used where its channel's columns agree with the model's alternation, all of them or all but
@@ -116,7 +118,6 @@ def lacking_scratch(W: int) -> LackingScratch:
         np.zeros(P, f64),  # local_width
         np.zeros(P, np.int64),  # run_stripes
         np.zeros(P, f64),  # run_scale
-        np.zeros(P, f64),  # group_width
         np.zeros(P, i32),  # held_bits
         np.zeros(P, i32),  # lacking_bits
         np.zeros(P, i32),  # votes
@@ -414,19 +415,20 @@ def _runs(s, ne, cx, W):
 
 @njit(inline="always")
 def _stripe_counts(s, nr):
-    """Per run the local stripe width (the median of the ratios of the runs around its group of GROUP:
-    s.local_width), its stripe count n (the changes seen, plus the pairs of them missed: s.run_stripes), n over
-    its span (s.run_scale); the groups' medians in s.group_width."""
-    ratio, e0s, e1s, wr, scale, width = s.run_ratio, s.run_e0, s.run_e1, s.local_width, s.run_scale, s.group_width
+    """Per run the local stripe width (the median of the ratios of the runs within WINDOW of it: s.local_width),
+    its stripe count n (the changes seen, plus the pairs of them missed: s.run_stripes), n over its span
+    (s.run_scale)."""
+    ratio, e0s, e1s, wr, scale = s.run_ratio, s.run_e0, s.run_e1, s.local_width, s.run_scale
     changes, r_n = s.run_changes, s.run_stripes
-    ng = (nr + GROUP - 1) // GROUP
-    # groups whose window is whole (13 runs from 4k - 4, the median the 7th) read it at fixed offsets
-    inner = max(0, (nr - WINDOW - GROUP // 2 - 1) // GROUP)  # (groups 1 .. inner)
-    for k in range(min(ng, 1)):
-        width[k] = _median(ratio, k, nr)
-    for k in range(inner):
-        b = GROUP * k
-        width[k + 1] = network13(
+    inf = np.inf
+    # runs whose window is whole (2 WINDOW + 1 runs) read it at fixed offsets, padded to the network's 13 with
+    # +inf (sorted last: the median stays the middle value of the window's own); the runs near the ends after
+    head = min(WINDOW, nr)
+    for i in range(head):
+        wr[i] = _median(ratio, i, nr)
+    for i in range(WINDOW, nr - WINDOW):
+        b = i - WINDOW
+        wr[i] = network13(
             ratio[b],
             ratio[b + 1],
             ratio[b + 2],
@@ -438,15 +440,12 @@ def _stripe_counts(s, nr):
             ratio[b + 8],
             ratio[b + 9],
             ratio[b + 10],
-            ratio[b + 11],
-            ratio[b + 12],
-        )[6]
-    for k in range(max(inner + 1, 1), ng):
-        width[k] = _median(ratio, k, nr)
-    for k in range(ng):
-        for t in range(GROUP):
-            wr[GROUP * k + t] = width[k]
-    for i in range(GROUP * ng, _whole(nr)):
+            inf,
+            inf,
+        )[WINDOW]
+    for i in range(max(nr - WINDOW, head), nr):
+        wr[i] = _median(ratio, i, nr)
+    for i in range(nr, _whole(nr)):
         wr[i] = 1.0  # (the padding's runs: any finite width)
     for i in range(_whole(nr)):
         span = e1s[i] - e0s[i]
@@ -457,11 +456,9 @@ def _stripe_counts(s, nr):
 
 
 @njit(inline="always")
-def _median(ratio, k, nr):
-    """The local stripe width of group k (its runs GROUP k..): the median of the ratios of the runs within WINDOW
-    of the group's middle."""
-    centre = min(GROUP * k + GROUP // 2, nr - 1)
-    return median13(ratio, max(0, centre - WINDOW), min(nr, centre + WINDOW + 1))
+def _median(ratio, i, nr):
+    """The local stripe width of run i: the median of the ratios of the runs within WINDOW of it."""
+    return median13(ratio, max(0, i - WINDOW), min(nr, i + WINDOW + 1))
 
 
 @njit(inline="always")
