@@ -153,10 +153,9 @@ class LackingScratch(NamedTuple):
     (flip_masks) and flags (long_run, emit), the runs emitted (emitted) and those of more than eight columns
     (long_runs), its phase where the flips read it (run_phase: a long run's own, or one carried across a G edge),
     its own phase (own_phase), whether _carried may give it one (refused, int8) and those runs (refused_runs). The
-    channel's columns
-    (ChannelColumns); the pixels whose sign flips (flips) and their camera difference of the channel once
-    flipped, float32 (flipped_c, lacking_fill.py); the channel's camera differences, float32 (camera_c,
-    lacking_leak.py)."""
+    channel's columns (ChannelColumns); the pixels whose sign flips (flips) and their camera difference of the
+    channel once flipped, float32 (flipped_c, lacking_fill.py); the channel's camera differences, float32
+    (camera_c, lacking_leak.py)."""
 
     g_max: np.ndarray
     g_threshold: np.ndarray
